@@ -1,0 +1,8 @@
+//! Hardware-free, allocation-free core of the mount firmware: the
+//! multi-kernel Gaussian-process model of the gear error and the guider
+//! around it. Everything here is `no_std` and generic over the scalar type,
+//! so the same code runs in `f64` on the host (the reference) and in `f32`
+//! on the Cortex-M4F.
+#![no_std]
+
+pub mod scalar;
