@@ -5,4 +5,5 @@
 //! on the Cortex-M4F.
 #![no_std]
 
+pub mod approx;
 pub mod scalar;

@@ -111,16 +111,16 @@ impl Scalar for f32 {
         self as f64
     }
     fn sin(self) -> Self {
-        libm::sinf(self)
+        crate::approx::sin(self)
     }
     fn cos(self) -> Self {
-        libm::cosf(self)
+        crate::approx::cos(self)
     }
     fn exp(self) -> Self {
-        libm::expf(self)
+        crate::approx::exp(self)
     }
     fn sqrt(self) -> Self {
-        libm::sqrtf(self)
+        crate::approx::sqrt(self)
     }
     fn is_finite(self) -> bool {
         f32::is_finite(self)
