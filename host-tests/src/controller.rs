@@ -1,0 +1,99 @@
+//! What the simulators drive: one control per guide frame.
+
+/// A guide algorithm for one axis.
+pub trait Controller {
+    /// One frame: `measured` is the error the guider sees (px), `snr` the
+    /// star's signal-to-noise ratio, `t` the frame time and `dt` the time
+    /// step (s). Returns the control: same units and sign as `measured`, the
+    /// amount of error to remove (the simulator does U += control).
+    fn step(&mut self, t: f64, measured: f64, snr: f64, dt: f64) -> f64;
+
+    /// The guider was dithered by `amount` px. Default: ignored.
+    fn dither(&mut self, _amount: f64) {}
+}
+
+impl<C: Controller + ?Sized> Controller for Box<C> {
+    fn step(&mut self, t: f64, measured: f64, snr: f64, dt: f64) -> f64 {
+        (**self).step(t, measured, snr, dt)
+    }
+    fn dither(&mut self, amount: f64) {
+        (**self).dither(amount)
+    }
+}
+
+/// PHD2's hysteresis algorithm: control = aggressiveness x ((1 - hysteresis)
+/// x input + hysteresis x previous control), and 0 when |input| < min_move.
+/// The previous control is the one returned (0 after a frame below min move):
+/// that reproduces all of design.md's hysteresis figures (tests/closed_loop.rs).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Hysteresis {
+    pub aggressiveness: f64,
+    pub hysteresis: f64,
+    pub min_move: f64,
+    previous: f64,
+}
+
+impl Hysteresis {
+    pub fn new(aggressiveness: f64, hysteresis: f64, min_move: f64) -> Self {
+        Hysteresis {
+            aggressiveness,
+            hysteresis,
+            min_move,
+            previous: 0.0,
+        }
+    }
+
+    /// The paper's reactive column: aggressiveness 0.6, hysteresis 0.1, min move 0.2.
+    pub fn paper() -> Self {
+        Self::new(0.6, 0.1, 0.2)
+    }
+
+    /// PHD2's replay baseline: aggressiveness 0.7, hysteresis 0.1, min move 0.2.
+    pub fn phd2_baseline() -> Self {
+        Self::new(0.7, 0.1, 0.2)
+    }
+}
+
+impl Controller for Hysteresis {
+    fn step(&mut self, _t: f64, measured: f64, _snr: f64, _dt: f64) -> f64 {
+        let control = if measured.abs() < self.min_move {
+            0.0
+        } else {
+            self.aggressiveness
+                * ((1.0 - self.hysteresis) * measured + self.hysteresis * self.previous)
+        };
+        self.previous = control;
+        control
+    }
+}
+
+/// No correction at all (the open loop).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct OpenLoop;
+
+impl Controller for OpenLoop {
+    fn step(&mut self, _t: f64, _measured: f64, _snr: f64, _dt: f64) -> f64 {
+        0.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hysteresis_steps() {
+        let mut h = Hysteresis::new(0.6, 0.1, 0.2);
+        assert_eq!(h.step(0.0, 0.1, 10.0, 2.0), 0.0);
+        let c1 = h.step(2.0, 1.0, 10.0, 2.0);
+        assert!((c1 - 0.54).abs() < 1e-15);
+        let c2 = h.step(4.0, -1.0, 10.0, 2.0);
+        assert!((c2 - 0.6 * (-0.9 + 0.054)).abs() < 1e-15);
+        assert_eq!(h.step(6.0, -0.19, 10.0, 2.0), 0.0);
+        let c4 = h.step(8.0, 1.0, 10.0, 2.0);
+        assert!(
+            (c4 - 0.54).abs() < 1e-15,
+            "previous resets to 0 below min move"
+        );
+    }
+}

@@ -1,0 +1,22 @@
+//! Host-side tools for `mkgp-mount`: the paper's synthetic gear-error cases
+//! and closed loop, PHD2 guide-log parsing and PHD2's causal replay, and the
+//! controllers they drive (PHD2's hysteresis and, with the `model` feature,
+//! the library's Gaussian-process guider).
+//!
+//! The shared data (`synthetic_cases.csv`, `phd2-logs/`, `reference-traces/`)
+//! is found by [`data::data_dir`].
+
+pub mod cases;
+pub mod closed_loop;
+pub mod controller;
+pub mod data;
+#[cfg(feature = "model")]
+pub mod gp;
+pub mod models;
+pub mod noise;
+pub mod phd2_log;
+pub mod replay;
+pub mod svg;
+pub mod table;
+
+pub use data::Error;

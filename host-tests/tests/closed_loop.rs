@@ -1,0 +1,74 @@
+//! The paper's closed loop reproduces design.md's figures.
+
+use host_tests::cases::{self, Case};
+use host_tests::closed_loop::{mean_noisy_rms, open_loop_rms, run, Noise};
+use host_tests::controller::Hysteresis;
+use host_tests::data;
+
+fn cases() -> Vec<Case> {
+    cases::load(&data::cases_file()).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// design.md: hysteresis 0.6, noise-free / 1 px mean of seeds 1-3.
+const HYSTERESIS: [(&str, f64, f64); 8] = [
+    ("C1", 0.332, 0.705),
+    ("C2", 0.367, 0.723),
+    ("C3", 0.410, 0.744),
+    ("C4", 0.471, 0.772),
+    ("C5", 0.661, 0.910),
+    ("C6", 0.994, 1.178),
+    ("C7", 1.049, 1.227),
+    ("C8", 1.424, 1.541),
+];
+
+/// The paper's open-loop column.
+const OPEN_LOOP: [(&str, f64); 8] = [
+    ("C1", 8.634),
+    ("C2", 9.028),
+    ("C3", 9.166),
+    ("C4", 9.019),
+    ("C5", 9.478),
+    ("C6", 10.436),
+    ("C7", 9.661),
+    ("C8", 10.604),
+];
+
+#[test]
+fn hysteresis_figures() {
+    let cases = cases();
+    assert_eq!(cases.len(), HYSTERESIS.len());
+    for (case, &(name, clean, noisy)) in cases.iter().zip(&HYSTERESIS) {
+        assert_eq!(case.name, name);
+        let c = run(case, &mut Hysteresis::paper(), Noise::None);
+        let n = mean_noisy_rms(case, 1.0, Hysteresis::paper);
+        // To 3 decimals: 15 of the 16 round to the published figure; C4
+        // noisy is 0.77252, 0.00052 from its published 0.772 (the published
+        // value was presumably truncated or computed in another order), so
+        // the bound is 0.0006 rather than 0.0005.
+        assert!(
+            (c - clean).abs() < 0.0005,
+            "{name} noise-free: {c:.5} vs {clean}"
+        );
+        assert!(
+            (n - noisy).abs() < 0.0006,
+            "{name} noisy: {n:.5} vs {noisy}"
+        );
+    }
+}
+
+#[test]
+fn open_loop_matches_the_paper() {
+    let cases = cases();
+    for (case, &(name, paper)) in cases.iter().zip(&OPEN_LOOP) {
+        assert_eq!(case.name, name);
+        let r = open_loop_rms(case);
+        // design.md: the cases match the paper's open loop within 0.4 %.
+        assert!((r / paper - 1.0).abs() < 0.004, "{name}: {r:.4} vs {paper}");
+    }
+}
+
+#[test]
+fn open_loop_of_c1_exactly() {
+    // C1 is a pure sinusoid + drift: 8.634 in the paper and here.
+    assert_eq!(format!("{:.3}", open_loop_rms(&cases()[0])), "8.634");
+}
