@@ -1,0 +1,274 @@
+//! guide-sim: the paper's synthetic table and PHD2-log replays.
+//!
+//! ```text
+//! guide-sim table [--cases FILE] [--csv]
+//! guide-sim replay [LOG...] [--csv]
+//! ```
+//! Arguments are parsed by hand: two subcommands with one flag and one
+//! option each do not justify a dependency.
+
+use host_tests::cases;
+use host_tests::controller::{Controller, Hysteresis};
+use host_tests::data::{self, Error};
+use host_tests::models::{self, Model};
+use host_tests::phd2_log::{self, GuideLog};
+use host_tests::replay::{self, ReplayResult};
+use host_tests::{svg, table};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+
+const USAGE: &str = "\
+usage: guide-sim table [--cases FILE] [--csv]
+       guide-sim replay [LOG...] [--csv]
+
+table   residual RMS (px, t >= 3600 s) of the synthetic cases for the open loop,
+        reactive (hysteresis 0.6), ppec (GP, 1 stage) and mkgp (GP, 2 stages),
+        noise-free and with 1 px noise (mean of seeds 1-3). Without --csv also
+        writes the bar chart guide-sim-table.svg in the current directory.
+replay  PHD2's causal replay of guide logs (default: all logs in the shared
+        data): hysteresis 0.7 baseline vs ppec and mkgp (control gain 0.7,
+        prediction gain 0.5, dt = the log's exposure).
+
+The shared data is found at $MKGP_SHARED (the shared/ directory or its data/),
+else at <repo>/../shared/data.";
+
+/// Control and prediction gains of the replay (PHD2's performance test).
+const REPLAY_CONTROL_GAIN: f64 = 0.7;
+const REPLAY_PREDICTION_GAIN: f64 = 0.5;
+
+fn usage_error(msg: &str) -> ExitCode {
+    eprintln!("guide-sim: {msg}\n\n{USAGE}");
+    ExitCode::from(2)
+}
+
+fn threads() -> usize {
+    std::thread::available_parallelism().map_or(2, |n| n.get())
+}
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let Some((cmd, rest)) = args.split_first() else {
+        return usage_error("no subcommand");
+    };
+    match cmd.as_str() {
+        "table" => cmd_table(rest),
+        "replay" => cmd_replay(rest),
+        "-h" | "--help" | "help" => {
+            println!("{USAGE}");
+            ExitCode::SUCCESS
+        }
+        other => usage_error(&format!("unknown subcommand {other:?}")),
+    }
+}
+
+fn cmd_table(args: &[String]) -> ExitCode {
+    let mut csv = false;
+    let mut cases_path: Option<PathBuf> = None;
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--csv" => csv = true,
+            "--cases" => match it.next() {
+                Some(p) => cases_path = Some(PathBuf::from(p)),
+                None => return usage_error("--cases needs a FILE"),
+            },
+            "-h" | "--help" => {
+                println!("{USAGE}");
+                return ExitCode::SUCCESS;
+            }
+            other => return usage_error(&format!("table: unexpected argument {other:?}")),
+        }
+    }
+    let path = cases_path.unwrap_or_else(data::cases_file);
+    let cases = match cases::load(&path) {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("guide-sim: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    models::warn_if_stand_in();
+    let rows = table::compute(&cases, threads());
+    if csv {
+        println!("case,noise_px,open_loop,reactive,ppec,mkgp");
+        for r in &rows {
+            println!(
+                "{},{},{:.3},{:.3},{:.3},{:.3}",
+                r.case, r.noise_px, r.open_loop, r.reactive, r.ppec, r.mkgp
+            );
+        }
+        return ExitCode::SUCCESS;
+    }
+    println!("Residual RMS (px) over t >= 3600 s; noise 1 px: mean of seeds 1-3");
+    println!(
+        "{:<6} {:>8} {:>10} {:>9} {:>9} {:>9}",
+        "case", "noise_px", "open_loop", "reactive", "ppec", "mkgp"
+    );
+    for r in &rows {
+        println!(
+            "{:<6} {:>8} {:>10.3} {:>9.3} {:>9.3} {:>9.3}",
+            r.case, r.noise_px, r.open_loop, r.reactive, r.ppec, r.mkgp
+        );
+    }
+    let note = if models::MODEL_AVAILABLE {
+        String::new()
+    } else {
+        "ppec and mkgp are HYSTERESIS STAND-INS (built without the model feature)".to_string()
+    };
+    let out = Path::new("guide-sim-table.svg");
+    match std::fs::write(out, svg::table_chart(&rows, &note)) {
+        Ok(()) => {
+            let shown = std::fs::canonicalize(out).unwrap_or_else(|_| out.to_path_buf());
+            println!("bar chart written to {}", shown.display());
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("guide-sim: cannot write {}: {e}", out.display());
+            ExitCode::FAILURE
+        }
+    }
+}
+
+#[derive(Clone, Copy)]
+enum Kind {
+    Hysteresis,
+    Model(Model),
+}
+
+fn replay_controller(kind: Kind) -> Box<dyn Controller + Send> {
+    match kind {
+        Kind::Hysteresis => Box::new(Hysteresis::phd2_baseline()),
+        Kind::Model(m) => {
+            models::controller(m, Some(REPLAY_CONTROL_GAIN), Some(REPLAY_PREDICTION_GAIN))
+        }
+    }
+}
+
+fn cmd_replay(args: &[String]) -> ExitCode {
+    let mut csv = false;
+    let mut paths = Vec::new();
+    for a in args {
+        match a.as_str() {
+            "--csv" => csv = true,
+            "-h" | "--help" => {
+                println!("{USAGE}");
+                return ExitCode::SUCCESS;
+            }
+            s if s.starts_with("--") => {
+                return usage_error(&format!("replay: unknown option {s:?}"))
+            }
+            s => paths.push(PathBuf::from(s)),
+        }
+    }
+    if paths.is_empty() {
+        match data::phd2_logs() {
+            Ok(p) => paths = p,
+            Err(e) => {
+                eprintln!("guide-sim: {e}");
+                return ExitCode::FAILURE;
+            }
+        }
+    }
+    // Parse every log first; a bad log is reported and the others still run.
+    let mut failed = false;
+    let logs: Vec<Option<GuideLog>> = paths
+        .iter()
+        .map(|p| match phd2_log::load(p) {
+            Ok(log) => Some(log),
+            Err(e) => {
+                eprintln!("guide-sim: {e}");
+                failed = true;
+                None
+            }
+        })
+        .collect();
+    models::warn_if_stand_in();
+    let kinds = [
+        Kind::Model(Model::Mkgp),
+        Kind::Model(Model::Ppec),
+        Kind::Hysteresis,
+    ];
+    let jobs: Vec<(usize, usize)> = (0..kinds.len())
+        .flat_map(|k| {
+            logs.iter()
+                .enumerate()
+                .filter(|(_, l)| l.is_some())
+                .map(move |(i, _)| (i, k))
+        })
+        .collect();
+    let results: Mutex<Vec<Vec<Option<Result<ReplayResult, Error>>>>> =
+        Mutex::new(vec![vec![None, None, None]; logs.len()]);
+    let next = AtomicUsize::new(0);
+    std::thread::scope(|s| {
+        for _ in 0..threads() {
+            s.spawn(|| loop {
+                let Some(&(i, k)) = jobs.get(next.fetch_add(1, Ordering::Relaxed)) else {
+                    break;
+                };
+                let log = logs[i].as_ref().unwrap();
+                let r = replay::run(log, &mut replay_controller(kinds[k]));
+                results.lock().unwrap()[i][k] = Some(r);
+            });
+        }
+    });
+    let results = results.into_inner().unwrap();
+    if csv {
+        println!("log,frames,hysteresis_rms,ppec_rms,mkgp_rms,ppec_gain_pct,mkgp_gain_pct");
+    } else {
+        println!(
+            "{:<24} {:>6} {:>14} {:>9} {:>9} {:>13} {:>13}",
+            "log",
+            "frames",
+            "hysteresis_rms",
+            "ppec_rms",
+            "mkgp_rms",
+            "ppec_gain_pct",
+            "mkgp_gain_pct"
+        );
+    }
+    for (log, res) in logs.iter().zip(results) {
+        let Some(log) = log else { continue };
+        let res: Result<Vec<ReplayResult>, Error> = res.into_iter().map(|r| r.unwrap()).collect();
+        let r = match res {
+            Ok(r) => r,
+            Err(e) => {
+                eprintln!("guide-sim: {e}");
+                failed = true;
+                continue;
+            }
+        };
+        let (mkgp, ppec, hyst) = (r[0], r[1], r[2]);
+        let pg = replay::gain_pct(ppec.rms, hyst.rms);
+        let mg = replay::gain_pct(mkgp.rms, hyst.rms);
+        if csv {
+            println!(
+                "{},{},{:.4},{:.4},{:.4},{:.2},{:.2}",
+                log.name(),
+                hyst.frames,
+                hyst.rms,
+                ppec.rms,
+                mkgp.rms,
+                pg,
+                mg
+            );
+        } else {
+            println!(
+                "{:<24} {:>6} {:>14.4} {:>9.4} {:>9.4} {:>13.2} {:>13.2}",
+                log.name(),
+                hyst.frames,
+                hyst.rms,
+                ppec.rms,
+                mkgp.rms,
+                pg,
+                mg
+            );
+        }
+    }
+    if failed {
+        ExitCode::FAILURE
+    } else {
+        ExitCode::SUCCESS
+    }
+}

@@ -1,0 +1,122 @@
+//! The guide-sim binary: CSV headers, errors and exit status.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn guide_sim(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_guide-sim"))
+        .args(args)
+        .output()
+        .expect("run guide-sim")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("guide-sim-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn table_csv() {
+    // One small case keeps this fast also with the model built in.
+    let cases = scratch("one_case.csv");
+    std::fs::write(
+        &cases,
+        "case,component,period_s,amplitude_px,phase_rad,drift_px_per_s\nC1,primary,432,9.0,0,\nC1,drift,,,,0.0008\n",
+    )
+    .unwrap();
+    let o = guide_sim(&["table", "--cases", cases.to_str().unwrap(), "--csv"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines[0], "case,noise_px,open_loop,reactive,ppec,mkgp");
+    assert_eq!(lines.len(), 3, "{out}");
+    assert!(lines[1].starts_with("C1,0,8.634,0.332,"), "{out}");
+    assert!(lines[2].starts_with("C1,1,8.634,0.705,"), "{out}");
+}
+
+#[test]
+fn table_bad_cases_file() {
+    let cases = scratch("bad_cases.csv");
+    std::fs::write(
+        &cases,
+        "case,component,period_s,amplitude_px,phase_rad,drift_px_per_s\nC1,primary,43x,9.0,0,\n",
+    )
+    .unwrap();
+    let o = guide_sim(&["table", "--cases", cases.to_str().unwrap(), "--csv"]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains(&format!("{}:2: period_s", cases.display())),
+        "{}",
+        stderr(&o)
+    );
+    assert!(stdout(&o).is_empty());
+}
+
+#[test]
+fn missing_data_names_the_path() {
+    let o = Command::new(env!("CARGO_BIN_EXE_guide-sim"))
+        .args(["table", "--csv"])
+        .env("MKGP_SHARED", "/nonexistent/shared")
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = stderr(&o);
+    assert!(
+        err.contains("/nonexistent/shared/synthetic_cases.csv"),
+        "{err}"
+    );
+    assert!(err.contains("MKGP_SHARED"), "{err}");
+}
+
+#[test]
+fn replay_bad_log_fails_but_others_run() {
+    let good = host_tests::data::data_dir().join("phd2-logs/performance_dataset03.txt");
+    let bad = scratch("bad.txt");
+    std::fs::write(
+        &bad,
+        "Exposure = 2000 ms\nFrame,Time,mount,dx,dy,RARawDistance,DECRawDistance,RAGuideDistance,\
+         DECGuideDistance,RADuration,RADirection,DECDuration,DECDirection,XStep,YStep,StarMass,SNR,ErrorCode\n\
+         1,2.250,\"Mount\",0.856,-0.494,-0.899,-0.308,-0.540,0.000,227,E,0,,,,1762,23.05,0\n\
+         2,4.1o9,\"Mount\",0.159,-0.340,-0.191,-0.300,-0.115,0.000,48,E,0,,,,1463,21.04,0\n",
+    )
+    .unwrap();
+    let o = guide_sim(&[
+        "replay",
+        bad.to_str().unwrap(),
+        good.to_str().unwrap(),
+        "--csv",
+    ]);
+    assert!(!o.status.success(), "a failed log must fail the run");
+    assert!(
+        stderr(&o).contains(&format!("{}:4: Time", bad.display())),
+        "{}",
+        stderr(&o)
+    );
+    let out = stdout(&o);
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(
+        lines[0],
+        "log,frames,hysteresis_rms,ppec_rms,mkgp_rms,ppec_gain_pct,mkgp_gain_pct"
+    );
+    assert_eq!(lines.len(), 2, "{out}");
+    assert!(
+        lines[1].starts_with("performance_dataset03,664,0.1588,"),
+        "{out}"
+    );
+}
+
+#[test]
+fn unknown_subcommand_is_a_usage_error() {
+    let o = guide_sim(&["bench"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("usage:"));
+}
