@@ -6,4 +6,5 @@
 #![no_std]
 
 pub mod approx;
+pub mod fft;
 pub mod scalar;
