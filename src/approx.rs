@@ -77,13 +77,13 @@ const ROUND_MAGIC: f32 = 12_582_912.0;
 /// Bit pattern of `ROUND_MAGIC`.
 const ROUND_MAGIC_BITS: i32 = 0x4B40_0000;
 
-const FRAC_2_PI: f32 = 0.636_619_75;
+const FRAC_2_PI: f32 = core::f32::consts::FRAC_2_PI;
 /// `pi/2 = PIO2_1 + PIO2_2 + PIO2_3 + PIO2_4 (+ ~ -5.0e-17)`; the first three
 /// have 8 significant bits, so `k * PIO2_i` is exact for `|k| < 2^16`.
-const PIO2_1: f32 = 1.570_312_5;
-const PIO2_2: f32 = 4.825_592_041_015_625e-4;
-const PIO2_3: f32 = 1.266_598_701_477_050_8e-6;
-const PIO2_4: f32 = 9.920_936_294_705_03e-10;
+const PIO2_1: f32 = f32::from_bits(0x3FC90000); // 1.5703125
+const PIO2_2: f32 = f32::from_bits(0x39FD0000); // 4.825592041015625e-4
+const PIO2_3: f32 = f32::from_bits(0x35AA0000); // 1.2665987014770508e-6
+const PIO2_4: f32 = f32::from_bits(0x30885A31); // 9.92093629470503e-10
 /// Arguments below this use Cody-Waite; `|k| <= 63663 < 2^16` there.
 const CODY_WAITE_LIMIT: f32 = 1.0e5;
 
@@ -103,16 +103,16 @@ const PIO2_Q62: u64 = 0x6487_ED51_10B4_611A;
 
 // sin r = r + r^3 (S1 + S2 r^2 + S3 r^4) on |r| <= pi/4 + 0.004
 const S1: f32 = -0.166_666_54;
-const S2: f32 = 0.008_332_136_6;
+const S2: f32 = 0.008_332_137;
 const S3: f32 = -1.951_196e-4;
 // cos r = 1 - r^2/2 + r^4 (C1 + C2 r^2 + C3 r^4)
 const C1: f32 = 0.041_666_663;
 const C2: f32 = -0.001_388_811_7;
 const C3: f32 = 2.451_566_7e-5;
 
-const LOG2_E: f32 = 1.442_695;
+const LOG2_E: f32 = core::f32::consts::LOG2_E;
 /// `ln 2 = LN2_HI + LN2_LO (+ 5.5e-14)`, `LN2_HI` has 16 significant bits.
-const LN2_HI: f32 = 0.693_145_751_953_125;
+const LN2_HI: f32 = f32::from_bits(0x3F317200); // 0.693145751953125
 const LN2_LO: f32 = 1.428_606_8e-6;
 // exp r = 1 + r + r^2 (E2 + E3 r + E4 r^2 + E5 r^3 + E6 r^4) on |r| <= 0.349
 const E2: f32 = 0.499_999_93;
@@ -204,7 +204,7 @@ fn reduce_large(x: f32) -> (f32, u32) {
 #[inline]
 pub fn sin(x: f32) -> f32 {
     if !x.is_finite() {
-        return x - x;
+        return f32::NAN;
     }
     let (r, q) = reduce(x);
     let v = if q & 1 == 0 { sin_poly(r) } else { cos_poly(r) };
@@ -215,7 +215,7 @@ pub fn sin(x: f32) -> f32 {
 #[inline]
 pub fn cos(x: f32) -> f32 {
     if !x.is_finite() {
-        return x - x;
+        return f32::NAN;
     }
     let (r, q) = reduce(x);
     let q = q.wrapping_add(1);
@@ -227,7 +227,7 @@ pub fn cos(x: f32) -> f32 {
 #[inline]
 pub fn sin_cos(x: f32) -> (f32, f32) {
     if !x.is_finite() {
-        return (x - x, x - x);
+        return (f32::NAN, f32::NAN);
     }
     let (r, q) = reduce(x);
     let s = sin_poly(r);
@@ -245,9 +245,11 @@ pub fn sin_cos(x: f32) -> (f32, f32) {
 /// the overflow limit (`x > 88.7228`), NaN for NaN.
 #[inline]
 pub fn exp(x: f32) -> f32 {
-    if !(x <= EXP_OVERFLOW) {
-        // NaN or overflow: x + inf is NaN for NaN and +inf otherwise
-        return x + f32::INFINITY;
+    if x.is_nan() {
+        return x;
+    }
+    if x > EXP_OVERFLOW {
+        return f32::INFINITY;
     }
     if x < EXP_UNDERFLOW {
         return 0.0;
