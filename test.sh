@@ -1,0 +1,124 @@
+#!/usr/bin/env bash
+# The project's single test command, for newcomers and CI:   ./test.sh
+#
+#   0. toolchain: rustup target thumbv7em-none-eabihf, llvm-tools, rustfmt;
+#      qemu-system-arm (installed with apt-get when run as root).
+#   1. cargo fmt --check in every crate.
+#   2. host tests:   cd host-tests && cargo test --release
+#   3. target tests: cd target-tests && cargo run --release   (QEMU, Cortex-M4F)
+#   4. firmware:     cargo build --release for each chip, with flash/RAM use;
+#                    fails if the STM32F411CE build exceeds 128 KiB of flash
+#                    or 96 KiB of static RAM (the rest of its 128 KiB is left
+#                    for the stack).
+#
+# Exits non-zero on the first failure.
+set -euo pipefail
+cd "$(dirname "$0")"
+
+TARGET=thumbv7em-none-eabihf
+CHIPS=(stm32f411ce stm32f446re stm32f407vg)
+F411_FLASH_MAX=$((128 * 1024))
+F411_RAM_MAX=$((96 * 1024))
+
+kib() { printf '%d.%d KiB' $(($1 / 1024)) $((($1 % 1024) * 10 / 1024)); }
+step() { printf '\n==> %s\n' "$*"; }
+die() { printf 'test.sh: error: %s\n' "$*" >&2; exit 1; }
+
+# --- 0. toolchain -----------------------------------------------------------
+step "toolchain"
+command -v cargo >/dev/null || die "cargo not found: install Rust with rustup (https://rustup.rs)"
+command -v rustup >/dev/null || die "rustup not found: the embedded target is installed with rustup"
+if ! rustup target list --installed | grep -qx "$TARGET"; then
+    rustup target add "$TARGET"
+fi
+installed_components=$(rustup component list --installed)
+for c in llvm-tools rustfmt; do
+    if ! grep -q "^$c" <<<"$installed_components"; then
+        rustup component add "$c"
+    fi
+done
+if ! command -v qemu-system-arm >/dev/null; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+        export DEBIAN_FRONTEND=noninteractive
+        apt-get update
+        apt-get install -y --no-install-recommends qemu-system-arm
+    else
+        die "qemu-system-arm not found: install it (Debian/Ubuntu: sudo apt-get install qemu-system-arm)"
+    fi
+fi
+HOST=$(rustc -vV | sed -n 's/^host: //p')
+LLVM_SIZE="$(rustc --print sysroot)/lib/rustlib/$HOST/bin/llvm-size"
+[ -x "$LLVM_SIZE" ] || die "llvm-size not found at $LLVM_SIZE (rustup component add llvm-tools)"
+echo "rustc: $(rustc --version)"
+echo "qemu:  $(qemu-system-arm --version | head -n1)"
+
+HAVE_HOST_TESTS=0
+[ -f host-tests/Cargo.toml ] && HAVE_HOST_TESTS=1
+
+# --- 1. formatting ------------------------------------------------------------
+step "cargo fmt --check"
+cargo fmt --all --check # firmware package and hal/
+(cd target-tests && cargo fmt --check)
+if [ "$HAVE_HOST_TESTS" = 1 ]; then
+    (cd host-tests && cargo fmt --check)
+fi
+
+# --- 2. host tests ------------------------------------------------------------
+if [ "$HAVE_HOST_TESTS" = 1 ]; then
+    step "host tests (host-tests: cargo test --release)"
+    (cd host-tests && cargo test --release)
+else
+    step "host tests: host-tests/Cargo.toml not found, skipped"
+fi
+
+# --- 3. target tests in QEMU --------------------------------------------------
+step "target-tests harness self-check (failures must be reported)"
+selfcheck() {
+    local feature=$1 want=$2 log rc
+    log=$(mktemp)
+    rc=0
+    (cd target-tests && cargo run --release --features "$feature") >"$log" 2>&1 </dev/null || rc=$?
+    if [ "$rc" = 0 ] || ! grep -qx "$want" "$log"; then
+        cat "$log" >&2
+        rm -f "$log"
+        die "target-tests self-check $feature: expected a non-zero exit and '$want' (exit was $rc)"
+    fi
+    rm -f "$log"
+    echo "$feature: exit $rc, reported '$want' as expected"
+}
+selfcheck selfcheck-fail "1 passed, 2 failed"
+selfcheck selfcheck-hardfault "1 passed, 1 failed"
+
+step "target tests (target-tests: cargo run --release in qemu-system-arm mps2-an386)"
+(cd target-tests && cargo run --release </dev/null)
+
+# --- 4. firmware builds and sizes ----------------------------------------------
+step "firmware builds"
+OUT="target/$TARGET/release"
+sizes=()
+for chip in "${CHIPS[@]}"; do
+    echo "--- $chip"
+    cargo build --release --no-default-features --features "$chip"
+    cp "$OUT/mkgp-mount" "$OUT/mkgp-mount-$chip"
+    read -r text data bss _ < <("$LLVM_SIZE" -B "$OUT/mkgp-mount-$chip" | tail -n1)
+    flash=$((text + data))
+    ram=$((data + bss))
+    sizes+=("$(printf '%-12s %9d B %12s %9d B %12s' "$chip" "$flash" "($(kib "$flash"))" \
+        "$ram" "($(kib "$ram"))")")
+    if [ "$chip" = stm32f411ce ]; then
+        f411_flash=$flash
+        f411_ram=$ram
+    fi
+done
+
+step "firmware size (flash = text + data, static RAM = data + bss; stack not included)"
+printf '%-12s %24s %24s\n' chip flash "static RAM"
+printf '%s\n' "${sizes[@]}"
+echo "ELF per chip: $OUT/mkgp-mount-<chip>"
+[ "$f411_flash" -le "$F411_FLASH_MAX" ] ||
+    die "stm32f411ce flash $f411_flash B exceeds the budget of $F411_FLASH_MAX B"
+[ "$f411_ram" -le "$F411_RAM_MAX" ] ||
+    die "stm32f411ce static RAM $f411_ram B exceeds the budget of $F411_RAM_MAX B"
+echo "stm32f411ce within budget (flash <= 128 KiB, static RAM <= 96 KiB)"
+
+step "all checks passed"
