@@ -7,4 +7,11 @@
 
 pub mod approx;
 pub mod fft;
+pub mod gp;
+pub mod grid;
+pub mod guider;
+pub mod kernel;
+pub mod ldlt;
+pub mod period;
 pub mod scalar;
+pub mod spectrum;

@@ -1,0 +1,256 @@
+//! Gaussian-process inference on a subset of the grid (paper sec. 2).
+//!
+//! For each frame the [`SUBSET`] cells most correlated with the prediction
+//! point (full kernel) are chosen, their Gram matrix `K + diag(variance)` is
+//! factored, and the posterior mean with an explicit linear trend
+//! `h(t) = [1, t]` is reduced to one weight vector:
+//!
+//! mean(x) = k(x)ᵀ w + β₀ + β₁ t'(x),   w = K⁻¹ (y - H β),
+//! β = (H K⁻¹ Hᵀ)⁻¹ H K⁻¹ y,
+//!
+//! so that predicting needs only kernel values. The trend's time is centred
+//! on the prediction point and scaled (t' = (t - t_pred) / 1000 s): the
+//! fitted mean does not depend on that choice, but `f32` does.
+
+use crate::grid::{Grid, CELL_S};
+use crate::kernel::Kernel;
+use crate::ldlt::{dot, FactorError, Ldlt};
+use crate::scalar::Scalar;
+
+/// Cells used for one inference.
+pub const SUBSET: usize = 100;
+const TRIANGLE: usize = SUBSET * (SUBSET + 1) / 2;
+/// Time scale of the trend basis, seconds.
+const TREND_TIME_S: f64 = 1000.0;
+
+/// Why an inference could not be made.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InferError {
+    /// Fewer than two cells.
+    TooLittleData,
+    Factor(FactorError),
+    /// The trend system was singular or a result was not finite.
+    Degenerate,
+}
+
+/// Inference state. RAM: the packed Gram factor (5,050 scalars, 20,200 bytes
+/// in `f32`), five vectors of [`SUBSET`] scalars and the subset's cell
+/// indices (about 22.5 KiB in `f32` all told).
+pub struct Gp<S: Scalar> {
+    chol: Ldlt<S, SUBSET, TRIANGLE>,
+    /// Held-cell index of each subset member, ascending.
+    cells: [u16; SUBSET],
+    /// The posterior weights `w`.
+    weights: [S; SUBSET],
+    /// Scratch: `K⁻¹ 1` and `K⁻¹ t'`, and the selection's covariances.
+    s0: [S; SUBSET],
+    s1: [S; SUBSET],
+    cov: [S; SUBSET],
+    n: usize,
+    /// β₁, per unit of t'.
+    slope: S,
+    valid: bool,
+}
+
+impl<S: Scalar> Gp<S> {
+    pub fn new() -> Self {
+        Self {
+            chol: Ldlt::new(),
+            cells: [0; SUBSET],
+            weights: [S::ZERO; SUBSET],
+            s0: [S::ZERO; SUBSET],
+            s1: [S::ZERO; SUBSET],
+            cov: [S::ZERO; SUBSET],
+            n: 0,
+            slope: S::ZERO,
+            valid: false,
+        }
+    }
+
+    /// Whether the last [`infer`](Self::infer) succeeded.
+    pub fn is_valid(&self) -> bool {
+        self.valid
+    }
+
+    pub fn clear(&mut self) {
+        self.valid = false;
+        self.n = 0;
+    }
+
+    /// Fit the model around `centre` (seconds, relative to the grid origin).
+    pub fn infer<const N: usize>(
+        &mut self,
+        grid: &Grid<S>,
+        kernel: &Kernel<S, N>,
+        centre: f64,
+    ) -> Result<(), InferError> {
+        self.valid = false;
+        let total = grid.len();
+        if total < 2 {
+            return Err(InferError::TooLittleData);
+        }
+        self.select(grid, kernel, centre);
+        let n = self.n;
+
+        // Gram matrix. Lags between cells are exact multiples of 5 s.
+        let cell = S::from_f64(CELL_S);
+        self.chol.set_dim(n);
+        for i in 0..n {
+            let ci = self.cells[i] as i32;
+            let var_i = grid.cell(ci as usize).1;
+            let cells = self.cells;
+            let row = self.chol.row_mut(i);
+            for (j, r) in row.iter_mut().enumerate() {
+                let lag = S::from_f64((ci - cells[j] as i32) as f64) * cell;
+                *r = kernel.full(lag);
+            }
+            row[i] += var_i;
+        }
+        self.chol.factor().map_err(InferError::Factor)?;
+
+        // Right-hand sides: y (less a constant, which the trend absorbs),
+        // the constant and the time of the trend basis.
+        let y_ref = grid.cell(self.cells[0] as usize).0;
+        let inv_tau = S::from_f64(1.0 / TREND_TIME_S);
+        let centre_s = S::from_f64(centre);
+        for i in 0..n {
+            let c = self.cells[i] as usize;
+            self.weights[i] = grid.cell(c).0 - y_ref;
+            self.s0[i] = S::ONE;
+            self.s1[i] = (S::from_f64(grid.cell_time(c)) - centre_s) * inv_tau;
+        }
+        // t' of each member is needed again after the solves.
+        let mut t = [S::ZERO; SUBSET];
+        t[..n].copy_from_slice(&self.s1[..n]);
+        self.chol.solve(&mut self.weights[..n]);
+        self.chol.solve(&mut self.s0[..n]);
+        self.chol.solve(&mut self.s1[..n]);
+
+        let mut f00 = S::ZERO;
+        for &x in &self.s0[..n] {
+            f00 += x;
+        }
+        let f01 = dot(&t[..n], &self.s0[..n]);
+        let f11 = dot(&t[..n], &self.s1[..n]);
+        let mut b0 = S::ZERO;
+        for &x in &self.weights[..n] {
+            b0 += x;
+        }
+        let b1 = dot(&t[..n], &self.weights[..n]);
+        let det = f00 * f11 - f01 * f01;
+        if !(det > S::ZERO) {
+            return Err(InferError::Degenerate);
+        }
+        let beta0 = (f11 * b0 - f01 * b1) / det;
+        let beta1 = (f00 * b1 - f01 * b0) / det;
+        if !(beta0.is_finite() && beta1.is_finite()) {
+            return Err(InferError::Degenerate);
+        }
+        for i in 0..n {
+            self.weights[i] -= beta0 * self.s0[i] + beta1 * self.s1[i];
+            if !self.weights[i].is_finite() {
+                return Err(InferError::Degenerate);
+            }
+        }
+        self.slope = beta1 * inv_tau;
+        self.valid = true;
+        Ok(())
+    }
+
+    /// mean(x1) - mean(x0) of the projected posterior, times in seconds
+    /// relative to the grid origin. Zero without a valid inference.
+    pub fn predict_change<const N: usize>(
+        &self,
+        grid: &Grid<S>,
+        kernel: &Kernel<S, N>,
+        x0: f64,
+        x1: f64,
+    ) -> S {
+        if !self.valid || grid.is_empty() {
+            return S::ZERO;
+        }
+        // Lags from the newest cell, so that the short ones stay precise.
+        let newest = grid.len() - 1;
+        let t_newest = grid.cell_time(newest);
+        let d0 = S::from_f64(x0 - t_newest);
+        let d1 = S::from_f64(x1 - t_newest);
+        let cell = S::from_f64(CELL_S);
+        let mut change = S::ZERO;
+        for i in 0..self.n {
+            let back = S::from_usize(newest - self.cells[i] as usize) * cell;
+            let dk = kernel.projection(d1 + back) - kernel.projection(d0 + back);
+            change += dk * self.weights[i];
+        }
+        change + self.slope * S::from_f64(x1 - x0)
+    }
+
+    /// Choose the cells with the largest full-kernel covariance to `centre`;
+    /// of equal covariances the older cell wins. Leaves them in
+    /// `self.cells`, ascending.
+    fn select<const N: usize>(&mut self, grid: &Grid<S>, kernel: &Kernel<S, N>, centre: f64) {
+        let total = grid.len();
+        let k = total.min(SUBSET);
+        self.n = k;
+        if total <= SUBSET {
+            for (i, c) in self.cells.iter_mut().enumerate().take(total) {
+                *c = i as u16;
+            }
+            return;
+        }
+        // Min-heap of (covariance, cell) on self.cov / self.cells, ordered so
+        // that the root is the weakest member: lowest covariance, and of
+        // equals the newest cell.
+        let centre_s = S::from_f64(centre);
+        let weaker = |cov: &[S], cells: &[u16], a: usize, b: usize| {
+            cov[a] < cov[b] || (cov[a] == cov[b] && cells[a] > cells[b])
+        };
+        for j in 0..total {
+            let c = kernel.full(centre_s - S::from_f64(grid.cell_time(j)));
+            // NaN never enters: `c > root` is false for NaN.
+            if j < k {
+                self.cov[j] = c;
+                self.cells[j] = j as u16;
+                // sift up
+                let mut i = j;
+                while i > 0 {
+                    let p = (i - 1) / 2;
+                    if weaker(&self.cov, &self.cells, i, p) {
+                        self.cov.swap(i, p);
+                        self.cells.swap(i, p);
+                        i = p;
+                    } else {
+                        break;
+                    }
+                }
+            } else if c > self.cov[0] {
+                self.cov[0] = c;
+                self.cells[0] = j as u16;
+                // sift down
+                let mut i = 0;
+                loop {
+                    let (l, r) = (2 * i + 1, 2 * i + 2);
+                    let mut m = i;
+                    if l < k && weaker(&self.cov, &self.cells, l, m) {
+                        m = l;
+                    }
+                    if r < k && weaker(&self.cov, &self.cells, r, m) {
+                        m = r;
+                    }
+                    if m == i {
+                        break;
+                    }
+                    self.cov.swap(i, m);
+                    self.cells.swap(i, m);
+                    i = m;
+                }
+            }
+        }
+        self.cells[..k].sort_unstable();
+    }
+}
+
+impl<S: Scalar> Default for Gp<S> {
+    fn default() -> Self {
+        Self::new()
+    }
+}

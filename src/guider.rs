@@ -1,0 +1,456 @@
+//! The guider around the model: one call per guide frame turns the measured
+//! error into a control, blending the model's prediction with a reactive
+//! hysteresis term as far as the model has earned trust.
+//!
+//! With `N = 1` this is the single-kernel predictive PEC guider and
+//! reproduces the reference implementation (INDIGO 3.0) frame by frame; see
+//! `host-tests/tests/indigo_reference.rs`. `N > 1` adds the stages of the
+//! multi-kernel model.
+//!
+//! Sign convention: `input` is the measured error and the returned control
+//! is the amount of it to remove, in the same units (px or arcsec). A
+//! simulator applies it as `U += control`; INDIGO reports `-control` as its
+//! "correction".
+
+use crate::gp::Gp;
+use crate::grid::{Grid, Push};
+use crate::kernel::Kernel;
+use crate::period::PeriodTracker;
+use crate::scalar::Scalar;
+use crate::spectrum::{Spectrum, NYQUIST_BIN};
+
+/// Frames of proportional control without learning after a dither.
+pub const DITHER_FRAMES: u8 = 10;
+/// Frames before the model is consulted at all.
+const WARM_UP_FRAMES: u32 = 10;
+/// Weight of the previous control in the hysteresis term.
+const HYSTERESIS: f64 = 0.1;
+/// Variance given to a frame without a star.
+const DARK_VARIANCE: f64 = 1e4;
+/// SNR assumed when the caller does not know it.
+const DEFAULT_SNR: f64 = 10.0;
+
+/// Tuning of the guider.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GuiderConfig<S> {
+    /// Reactive gain (aggressiveness), 0..=1.
+    pub control_gain: S,
+    /// Gain on the predicted change of the gear error.
+    pub prediction_gain: S,
+    /// Errors smaller than this get no reactive correction.
+    pub min_move: S,
+    /// The worm period assumed until the spectrum says otherwise, seconds.
+    pub prior_period_s: f64,
+    /// Track the periods from the spectrum; if false, the prior is kept.
+    pub compute_period: bool,
+    /// Worm periods of data before the prediction is fully blended in.
+    pub periods_for_inference: f64,
+    /// Worm periods of data before the period is estimated.
+    pub periods_for_estimation: f64,
+}
+
+impl<S: Scalar> Default for GuiderConfig<S> {
+    fn default() -> Self {
+        Self {
+            control_gain: S::from_f64(0.6),
+            prediction_gain: S::from_f64(0.5),
+            min_move: S::from_f64(0.2),
+            prior_period_s: 300.0,
+            compute_period: true,
+            periods_for_inference: 2.0,
+            periods_for_estimation: 2.0,
+        }
+    }
+}
+
+/// What went wrong, counted since construction. Each has a defined outcome
+/// that never reaches the motor as garbage.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Faults {
+    /// Frame time not finite or earlier than the previous frame: the frame
+    /// was ignored and the control is 0.
+    pub bad_time: u32,
+    /// Input not finite: handled as a frame without a star.
+    pub bad_input: u32,
+    /// The Gram matrix did not factor: the frame fell back to hysteresis.
+    pub inference_failures: u32,
+    /// The frames jumped by more than the grid's window: learning restarted.
+    pub grid_restarts: u32,
+    /// A dither with a non-finite amount or a zero or non-finite rate.
+    pub bad_dithers: u32,
+}
+
+/// The guider state for `N` periodic stages, on static storage.
+pub struct Guider<S: Scalar, const N: usize> {
+    config: GuiderConfig<S>,
+    grid: Grid<S>,
+    spectrum: Spectrum<S>,
+    gp: Gp<S>,
+    kernel: Kernel<S, N>,
+    trackers: [PeriodTracker; N],
+    gates: [f64; N],
+    /// The worm line of the current spectrum (recomputed when a cell
+    /// completes, observed by the tracker on every frame).
+    worm_line_s: Option<f64>,
+    frames: u32,
+    start_time: f64,
+    last_time: f64,
+    /// Sum of the controls of all earlier frames.
+    sum_control: f64,
+    /// Controls of the last two frames, newest first. The hysteresis term
+    /// reads the older one: in the reference implementation each frame's
+    /// record carries the control of the frame before it, and the term reads
+    /// the previous record.
+    recent_controls: [S; 2],
+    /// Where the last prediction ended (s since start), if any.
+    last_prediction_end: Option<f64>,
+    prediction: S,
+    dither_offset: f64,
+    dither_frames_left: u8,
+    learning_progress: f64,
+    blend: f64,
+    faults: Faults,
+}
+
+/// Measurement variance from the star's SNR (single-kernel model).
+fn measurement_variance(snr: f64) -> f64 {
+    let snr = if snr.is_finite() && snr > 0.0 {
+        snr
+    } else {
+        DEFAULT_SNR
+    }
+    .max(3.4);
+    let sd = 2.1752 / (snr - 3.3) + 0.5;
+    sd * sd
+}
+
+impl<S: Scalar, const N: usize> Guider<S, N> {
+    pub fn new(config: GuiderConfig<S>) -> Self {
+        let trackers = [PeriodTracker::new(config.prior_period_s); N];
+        let mut gates = [0.0; N];
+        gates[0] = 1.0;
+        let periods = trackers.map(|t| t.period_s);
+        Self {
+            config,
+            grid: Grid::new(),
+            spectrum: Spectrum::new(),
+            gp: Gp::new(),
+            kernel: Kernel::new(&periods, &gates),
+            trackers,
+            gates,
+            worm_line_s: None,
+            frames: 0,
+            start_time: 0.0,
+            last_time: 0.0,
+            sum_control: 0.0,
+            recent_controls: [S::ZERO; 2],
+            last_prediction_end: None,
+            prediction: S::ZERO,
+            dither_offset: 0.0,
+            dither_frames_left: 0,
+            learning_progress: 0.0,
+            blend: 0.0,
+            faults: Faults::default(),
+        }
+    }
+
+    /// Forget the data (not the learned periods, nor the fault counters).
+    pub fn reset(&mut self) {
+        self.grid.clear();
+        self.spectrum.invalidate();
+        self.gp.clear();
+        self.worm_line_s = None;
+        self.frames = 0;
+        self.sum_control = 0.0;
+        self.recent_controls = [S::ZERO; 2];
+        self.last_prediction_end = None;
+        self.prediction = S::ZERO;
+        self.dither_offset = 0.0;
+        self.dither_frames_left = 0;
+        self.learning_progress = 0.0;
+        self.blend = 0.0;
+        for t in &mut self.trackers {
+            t.disagreement = 1.0;
+        }
+    }
+
+    pub fn config(&self) -> &GuiderConfig<S> {
+        &self.config
+    }
+
+    /// Tracked period of a stage, seconds (NaN for a stage not found yet).
+    pub fn period_s(&self, stage: usize) -> f64 {
+        self.trackers.get(stage).map_or(f64::NAN, |t| t.period_s)
+    }
+
+    /// Evidence gate of a stage, 0..=1 (the worm's is 1).
+    pub fn gate(&self, stage: usize) -> f64 {
+        self.gates.get(stage).copied().unwrap_or(0.0)
+    }
+
+    /// Progress shown to the user, 0..=1: the mean of the data ramp and the
+    /// period convergence (the blend weight is their product).
+    pub fn learning_progress(&self) -> f64 {
+        self.learning_progress
+    }
+
+    /// Weight of the predictive term in the last frame's control.
+    pub fn blend_weight(&self) -> f64 {
+        self.blend
+    }
+
+    /// The last predicted change of the gear error over the next frame.
+    pub fn prediction(&self) -> S {
+        self.prediction
+    }
+
+    pub fn faults(&self) -> Faults {
+        self.faults
+    }
+
+    /// One guide frame with a star. `time_s`: the guider's clock in seconds
+    /// (any origin; the first frame after construction or reset is the
+    /// start). `snr` <= 0 or not finite means unknown. `time_step`: the
+    /// time to the next frame, seconds. Returns the control.
+    pub fn frame(&mut self, time_s: f64, input: S, snr: S, time_step: S) -> S {
+        if !self.accept_time(time_s) {
+            return S::ZERO;
+        }
+        let reactive = self.config.control_gain * input;
+        if self.dither_frames_left > 0 {
+            // Settling after a dither: the measurement is not gear error.
+            // Proportional control, and the frame is learned as dark.
+            self.dither_frames_left -= 1;
+            self.dark_step(time_s, time_step);
+            return if reactive.is_finite() {
+                reactive
+            } else {
+                S::ZERO
+            };
+        }
+        if !input.is_finite() {
+            self.faults.bad_input = self.faults.bad_input.saturating_add(1);
+            return self.dark_frame(time_s, time_step);
+        }
+        let dt = Self::sanitize_step(time_step);
+        let timestamp = self.timestamp(time_s);
+        let variance = measurement_variance(snr.to_f64());
+        self.last_prediction_end = Some(timestamp);
+
+        let gain = self.config.control_gain;
+        let mut hysteresis = gain
+            * (S::from_f64(1.0 - HYSTERESIS) * input
+                + S::from_f64(HYSTERESIS) * self.recent_controls[1]);
+        let mut control = reactive;
+        if input.abs() < self.config.min_move {
+            control = S::ZERO;
+            hysteresis = S::ZERO;
+        }
+        self.blend = 0.0;
+        if self.frames >= WARM_UP_FRAMES {
+            let now = time_s - self.start_time;
+            let failed = self.update(now + 0.5 * dt, timestamp);
+            self.prediction = self.predict(now, dt);
+            control += self.config.prediction_gain * self.prediction;
+            // A failed fit falls back to the reactive term alone.
+            self.blend = if failed {
+                0.0
+            } else {
+                self.blend_weight_at(timestamp)
+            };
+            let b = S::from_f64(self.blend);
+            control = b * control + (S::ONE - b) * hysteresis;
+        }
+        if !control.is_finite() {
+            control = hysteresis;
+        }
+        self.learning_progress = self.progress_at(timestamp);
+        self.finish_frame(timestamp, input.to_f64(), variance, control)
+    }
+
+    /// One guide frame without a star (clouds, a lost star): the model's
+    /// prediction alone is applied once it has enough data.
+    pub fn dark_frame(&mut self, time_s: f64, time_step: S) -> S {
+        if !self.accept_time(time_s) {
+            return S::ZERO;
+        }
+        self.dark_step(time_s, time_step)
+    }
+
+    /// The guider dithered by `amount` (px or arcsec) at `rate` (the same
+    /// units per second of gear time): shift gear time and settle for
+    /// [`DITHER_FRAMES`] frames without learning.
+    pub fn dithered(&mut self, amount: S, rate: S) {
+        let (amount, rate) = (amount.to_f64(), rate.to_f64());
+        let offset = amount / rate;
+        if !offset.is_finite() {
+            self.faults.bad_dithers = self.faults.bad_dithers.saturating_add(1);
+            return;
+        }
+        self.dither_offset += offset;
+        self.dither_frames_left = DITHER_FRAMES;
+    }
+
+    fn dark_step(&mut self, time_s: f64, time_step: S) -> S {
+        let dt = Self::sanitize_step(time_step);
+        let timestamp = self.timestamp(time_s);
+        let mut control = S::ZERO;
+        self.blend = 0.0;
+        if self.frames >= WARM_UP_FRAMES
+            && timestamp > self.config.periods_for_inference * self.trackers[0].period_s
+        {
+            let now = time_s - self.start_time;
+            if !self.update(now + 0.5 * dt, timestamp) {
+                self.prediction = self.predict(now, dt);
+                control = self.prediction;
+            }
+        }
+        if !control.is_finite() {
+            control = S::ZERO;
+        }
+        self.learning_progress = self.progress_at(timestamp);
+        self.finish_frame(timestamp, 0.0, DARK_VARIANCE, control)
+    }
+
+    fn sanitize_step(time_step: S) -> f64 {
+        let dt = time_step.to_f64();
+        if dt.is_finite() && dt > 0.0 {
+            dt
+        } else {
+            0.0
+        }
+    }
+
+    /// Refuse a frame time that is not finite or runs backwards.
+    fn accept_time(&mut self, time_s: f64) -> bool {
+        let ok = time_s.is_finite() && (self.frames == 0 || time_s >= self.last_time);
+        if !ok {
+            self.faults.bad_time = self.faults.bad_time.saturating_add(1);
+        }
+        ok
+    }
+
+    /// Gear time of the current frame: the midpoint of the interval since
+    /// the previous frame, plus the dither offset.
+    fn timestamp(&mut self, time_s: f64) -> f64 {
+        if self.frames == 0 {
+            self.start_time = time_s;
+            self.last_time = time_s;
+        }
+        let delta = time_s - self.last_time;
+        self.last_time = time_s;
+        (time_s - self.start_time) - 0.5 * delta + self.dither_offset
+    }
+
+    /// Record the frame in the grid and remember its control.
+    fn finish_frame(&mut self, timestamp: f64, measurement: f64, variance: f64, control: S) -> S {
+        let control = if control.is_finite() {
+            control
+        } else {
+            S::ZERO
+        };
+        match self
+            .grid
+            .push(timestamp, self.sum_control + measurement, variance)
+        {
+            Push::Accepted { new_cells: 0 } | Push::Rejected => {}
+            Push::Accepted { .. } => self.spectrum.invalidate(),
+            Push::Restarted => {
+                self.spectrum.invalidate();
+                self.faults.grid_restarts = self.faults.grid_restarts.saturating_add(1);
+            }
+        }
+        self.sum_control += control.to_f64();
+        self.recent_controls = [control, self.recent_controls[0]];
+        self.frames = self.frames.saturating_add(1);
+        control
+    }
+
+    /// Track the periods and fit the model around `centre` (s since start).
+    /// Returns true if the fit failed (the frame then falls back to the
+    /// reactive term); with too little data the last fit, if any, is kept.
+    fn update(&mut self, centre: f64, timestamp: f64) -> bool {
+        let Some(origin) = self.grid.origin() else {
+            return false;
+        };
+        if self.grid.len() < 2 {
+            return false;
+        }
+        if self.config.compute_period
+            && timestamp > self.config.periods_for_estimation * self.trackers[0].period_s
+        {
+            if !self.spectrum.is_valid() {
+                self.spectrum.compute(&self.grid);
+                self.worm_line_s = self
+                    .spectrum
+                    .strongest(0, NYQUIST_BIN, |_| true)
+                    .map(|l| l.period_s);
+            }
+            if let Some(p) = self.worm_line_s {
+                self.trackers[0].observe(p);
+            }
+        }
+        let periods = self.trackers.map(|t| t.period_s);
+        self.kernel = Kernel::new(&periods, &self.gates);
+        let failed = self
+            .gp
+            .infer(&self.grid, &self.kernel, centre - origin)
+            .is_err();
+        if failed {
+            self.faults.inference_failures = self.faults.inference_failures.saturating_add(1);
+        }
+        failed
+    }
+
+    /// Predicted change of the gear error from the end of the last
+    /// prediction to `now + dt` (s since start, plus the dither offset).
+    fn predict(&mut self, now: f64, dt: f64) -> S {
+        let x1 = now + dt + self.dither_offset;
+        let x0 = self.last_prediction_end.unwrap_or(now);
+        self.last_prediction_end = Some(x1);
+        let Some(origin) = self.grid.origin() else {
+            return S::ZERO;
+        };
+        self.gp
+            .predict_change(&self.grid, &self.kernel, x0 - origin, x1 - origin)
+    }
+
+    /// The least settled period among the stages that carry weight.
+    fn convergence(&self) -> f64 {
+        if !self.config.compute_period {
+            return 1.0;
+        }
+        self.trackers
+            .iter()
+            .zip(&self.gates)
+            .filter(|(_, &g)| g > 0.0)
+            .map(|(t, _)| t.convergence())
+            .fold(1.0, f64::min)
+    }
+
+    fn data_ramp(&self, timestamp: f64) -> f64 {
+        let span = self.config.periods_for_inference * self.trackers[0].period_s;
+        if !(span > 0.0) {
+            return 0.0;
+        }
+        (timestamp / span).clamp(0.0, 1.0)
+    }
+
+    fn blend_weight_at(&self, timestamp: f64) -> f64 {
+        if self.frames < WARM_UP_FRAMES {
+            return 0.0;
+        }
+        self.data_ramp(timestamp) * self.convergence()
+    }
+
+    fn progress_at(&self, timestamp: f64) -> f64 {
+        if self.frames < WARM_UP_FRAMES {
+            return 0.0;
+        }
+        let ramp = self.data_ramp(timestamp);
+        if !self.config.compute_period {
+            return ramp;
+        }
+        0.5 * ramp + 0.5 * self.convergence()
+    }
+}

@@ -1,0 +1,202 @@
+//! Square-root-free Cholesky (LDLᵀ) factorisation on static storage.
+//!
+//! The Gram matrix of the inference subset is symmetric, so only its lower
+//! triangle is kept, packed row by row: row `i` holds columns `0..=i` at
+//! offset `i (i + 1) / 2`. For the default subset of 100 points that is 5,050
+//! scalars (20,200 bytes in `f32`). After [`Ldlt::factor`] the strict lower
+//! part holds `L` (unit diagonal implied) and the diagonal holds `D`.
+
+use crate::scalar::Scalar;
+
+/// Why a factorisation was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FactorError {
+    /// A pivot was zero, negative or not finite: the matrix is not
+    /// (numerically) positive definite. The caller falls back to reactive
+    /// guiding for this frame.
+    NotPositiveDefinite { row: usize },
+}
+
+/// Packed lower triangle of an `n x n` symmetric matrix, `n <= CAP`.
+/// `TRI` must be `CAP (CAP + 1) / 2` (checked at compile time in `new`).
+pub struct Ldlt<S: Scalar, const CAP: usize, const TRI: usize> {
+    a: [S; TRI],
+    n: usize,
+}
+
+const fn row_start(i: usize) -> usize {
+    i * (i + 1) / 2
+}
+
+impl<S: Scalar, const CAP: usize, const TRI: usize> Ldlt<S, CAP, TRI> {
+    const TRI_MATCHES_CAP: () = assert!(TRI == CAP * (CAP + 1) / 2);
+
+    pub fn new() -> Self {
+        #[allow(clippy::let_unit_value)]
+        let _ = Self::TRI_MATCHES_CAP;
+        Self {
+            a: [S::ZERO; TRI],
+            n: 0,
+        }
+    }
+
+    /// Current dimension.
+    pub fn dim(&self) -> usize {
+        self.n
+    }
+
+    /// Start filling an `n x n` matrix (`n` is clamped to the capacity).
+    pub fn set_dim(&mut self, n: usize) {
+        self.n = n.min(CAP);
+    }
+
+    /// Row `i`, columns `0..=i`, for filling the matrix before factoring.
+    pub fn row_mut(&mut self, i: usize) -> &mut [S] {
+        let s = row_start(i);
+        &mut self.a[s..s + i + 1]
+    }
+
+    /// Factor in place: afterwards row `i` holds `L[i][0..i]` and `D[i]`.
+    pub fn factor(&mut self) -> Result<(), FactorError> {
+        let n = self.n;
+        for i in 0..n {
+            let ri = row_start(i);
+            // First pass: w_j = L_ij D_j = A_ij - sum_{k<j} w_k L_jk.
+            for j in 0..i {
+                let rj = row_start(j);
+                let (head, tail) = self.a.split_at_mut(ri);
+                let dot = dot(&tail[..j], &head[rj..rj + j]);
+                tail[j] -= dot;
+            }
+            // Second pass: L_ij = w_j / D_j and D_i = A_ii - sum_j w_j L_ij.
+            let mut d = self.a[ri + i];
+            for j in 0..i {
+                let dj = self.a[row_start(j) + j];
+                let w = self.a[ri + j];
+                let l = w / dj;
+                d -= l * w;
+                self.a[ri + j] = l;
+            }
+            // `!(d > 0)` also catches NaN.
+            if !(d > S::ZERO) || !d.is_finite() {
+                return Err(FactorError::NotPositiveDefinite { row: i });
+            }
+            self.a[ri + i] = d;
+        }
+        Ok(())
+    }
+
+    /// Solve `A x = b` in place, with `A` factored. `b.len()` must be `dim()`.
+    pub fn solve(&self, b: &mut [S]) {
+        let n = self.n.min(b.len());
+        // L y = b
+        for i in 0..n {
+            let ri = row_start(i);
+            let s = dot(&self.a[ri..ri + i], &b[..i]);
+            b[i] -= s;
+        }
+        // D z = y
+        for (i, bi) in b.iter_mut().enumerate().take(n) {
+            *bi /= self.a[row_start(i) + i];
+        }
+        // Lᵀ x = z, column-oriented so that rows of L are read contiguously.
+        for i in (0..n).rev() {
+            let ri = row_start(i);
+            let xi = b[i];
+            for (bk, &l) in b[..i].iter_mut().zip(&self.a[ri..ri + i]) {
+                *bk -= l * xi;
+            }
+        }
+    }
+}
+
+impl<S: Scalar, const CAP: usize, const TRI: usize> Default for Ldlt<S, CAP, TRI> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// Plain dot product (the subset is small, 100 terms at most).
+pub fn dot<S: Scalar>(a: &[S], b: &[S]) -> S {
+    let mut s = S::ZERO;
+    for (&x, &y) in a.iter().zip(b) {
+        s += x * y;
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn naive_solve(m: &[[f64; 6]; 6], b: &[f64; 6]) -> [f64; 6] {
+        // Gaussian elimination with partial pivoting.
+        let mut a = *m;
+        let mut x = *b;
+        for c in 0..6 {
+            let p = (c..6)
+                .max_by(|&i, &j| a[i][c].abs().partial_cmp(&a[j][c].abs()).unwrap())
+                .unwrap();
+            a.swap(c, p);
+            x.swap(c, p);
+            for r in c + 1..6 {
+                let f = a[r][c] / a[c][c];
+                for k in c..6 {
+                    a[r][k] -= f * a[c][k];
+                }
+                x[r] -= f * x[c];
+            }
+        }
+        for c in (0..6).rev() {
+            for k in c + 1..6 {
+                x[c] -= a[c][k] * x[k];
+            }
+            x[c] /= a[c][c];
+        }
+        x
+    }
+
+    fn spd() -> [[f64; 6]; 6] {
+        let mut m = [[0.0; 6]; 6];
+        for i in 0..6 {
+            for j in 0..6 {
+                let d = (i as f64 - j as f64) * 5.0;
+                m[i][j] = 400.0 * libm::exp(-d * d / (2.0 * 30.0 * 30.0));
+            }
+            m[i][i] += 0.5 + i as f64 * 0.1;
+        }
+        m
+    }
+
+    #[test]
+    fn matches_naive_solve() {
+        let m = spd();
+        let b = [1.0, -2.0, 0.5, 3.0, -1.0, 0.25];
+        let mut f: Ldlt<f64, 8, 36> = Ldlt::new();
+        f.set_dim(6);
+        for i in 0..6 {
+            f.row_mut(i).copy_from_slice(&m[i][..=i]);
+        }
+        f.factor().unwrap();
+        let mut x = b;
+        f.solve(&mut x);
+        let r = naive_solve(&m, &b);
+        for i in 0..6 {
+            assert!(
+                (x[i] - r[i]).abs() < 1e-9 * r[i].abs().max(1.0),
+                "{x:?} {r:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn refuses_indefinite_and_nan() {
+        let mut f: Ldlt<f64, 2, 3> = Ldlt::new();
+        f.set_dim(2);
+        f.row_mut(0).copy_from_slice(&[1.0]);
+        f.row_mut(1).copy_from_slice(&[2.0, 1.0]);
+        assert_eq!(f.factor(), Err(FactorError::NotPositiveDefinite { row: 1 }));
+        f.row_mut(0).copy_from_slice(&[f64::NAN]);
+        assert_eq!(f.factor(), Err(FactorError::NotPositiveDefinite { row: 0 }));
+    }
+}
