@@ -1,4 +1,4 @@
-//! The library's Gaussian-process guider as a [`Controller`] (feature `model`).
+//! The library's Gaussian-process guider as a [`Controller`].
 
 use crate::controller::Controller;
 use mkgp_mount::guider::{Guider, GuiderConfig};

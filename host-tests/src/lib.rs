@@ -1,7 +1,7 @@
 //! Host-side tools for `mkgp-mount`: the paper's synthetic gear-error cases
 //! and closed loop, PHD2 guide-log parsing and PHD2's causal replay, and the
-//! controllers they drive (PHD2's hysteresis and, with the `model` feature,
-//! the library's Gaussian-process guider).
+//! controllers they drive (PHD2's hysteresis and the library's
+//! Gaussian-process guider).
 //!
 //! The shared data (`synthetic_cases.csv`, `phd2-logs/`, `reference-traces/`)
 //! is found by [`data::data_dir`].
@@ -10,7 +10,6 @@ pub mod cases;
 pub mod closed_loop;
 pub mod controller;
 pub mod data;
-#[cfg(feature = "model")]
 pub mod gp;
 pub mod models;
 pub mod noise;
