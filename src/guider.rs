@@ -12,8 +12,9 @@
 //! simulator applies it as `U += control`; INDIGO reports `-control` as its
 //! "correction".
 
+use crate::discovery::Discovery;
 use crate::gp::Gp;
-use crate::grid::{Grid, Push};
+use crate::grid::{Grid, Push, CELL_S};
 use crate::kernel::Kernel;
 use crate::period::PeriodTracker;
 use crate::scalar::Scalar;
@@ -47,7 +48,13 @@ pub struct GuiderConfig<S> {
     pub periods_for_inference: f64,
     /// Worm periods of data before the period is estimated.
     pub periods_for_estimation: f64,
+    /// The user's estimate of the period of stages 1, 2, 3 (seconds), if
+    /// known: the search for that stage is then confined to a band around it.
+    pub stage_seeds_s: [Option<f64>; MAX_SEEDED_STAGES],
 }
+
+/// Stages beyond the worm that can be given a seed period.
+pub const MAX_SEEDED_STAGES: usize = 3;
 
 impl<S: Scalar> Default for GuiderConfig<S> {
     fn default() -> Self {
@@ -59,6 +66,7 @@ impl<S: Scalar> Default for GuiderConfig<S> {
             compute_period: true,
             periods_for_inference: 2.0,
             periods_for_estimation: 2.0,
+            stage_seeds_s: [None; MAX_SEEDED_STAGES],
         }
     }
 }
@@ -89,6 +97,7 @@ pub struct Guider<S: Scalar, const N: usize> {
     kernel: Kernel<S, N>,
     trackers: [PeriodTracker; N],
     gates: [f64; N],
+    discovery: Discovery<N>,
     /// The worm line of the current spectrum (recomputed when a cell
     /// completes, observed by the tracker on every frame).
     worm_line_s: Option<f64>,
@@ -130,6 +139,10 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         let mut gates = [0.0; N];
         gates[0] = 1.0;
         let periods = trackers.map(|t| t.period_s);
+        let seeds = core::array::from_fn(|s| {
+            s.checked_sub(1)
+                .and_then(|i| config.stage_seeds_s.get(i).copied().flatten())
+        });
         Self {
             config,
             grid: Grid::new(),
@@ -138,6 +151,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             kernel: Kernel::new(&periods, &gates),
             trackers,
             gates,
+            discovery: Discovery::new(seeds),
             worm_line_s: None,
             frames: 0,
             start_time: 0.0,
@@ -160,6 +174,8 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         self.spectrum.invalidate();
         self.gp.clear();
         self.worm_line_s = None;
+        self.discovery.clear();
+        self.gates[1..].fill(0.0);
         self.frames = 0;
         self.sum_control = 0.0;
         self.recent_controls = [S::ZERO; 2];
@@ -381,14 +397,19 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         {
             if !self.spectrum.is_valid() {
                 self.spectrum.compute(&self.grid);
-                self.worm_line_s = self
-                    .spectrum
-                    .strongest(0, NYQUIST_BIN, |_| true)
-                    .map(|l| l.period_s);
+                let worm = self.spectrum.strongest(0, NYQUIST_BIN, |_| true);
+                self.worm_line_s = worm.map(|l| l.period_s);
+                if N > 1 {
+                    let span = self.grid.len() as f64 * CELL_S;
+                    let power = worm.map_or(0.0, |l| l.power);
+                    self.discovery
+                        .scan(&self.spectrum, &mut self.trackers, power, span);
+                }
             }
             if let Some(p) = self.worm_line_s {
                 self.trackers[0].observe(p);
             }
+            self.discovery.step(&mut self.trackers, &mut self.gates);
         }
         let periods = self.trackers.map(|t| t.period_s);
         self.kernel = Kernel::new(&periods, &self.gates);
