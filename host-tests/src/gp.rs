@@ -2,35 +2,41 @@
 
 use crate::controller::Controller;
 use mkgp_mount::guider::{Guider, GuiderConfig};
+use mkgp_mount::scalar::Scalar;
 
-/// `mkgp_mount::guider::Guider<f64, N>`: N = 1 is PPEC, N = 2 the
-/// multi-kernel model. Boxed: the guider is about 100 KiB.
-pub struct GpController<const N: usize> {
-    guider: Box<Guider<f64, N>>,
+/// `mkgp_mount::guider::Guider<S, N>`: N = 1 is PPEC, N = 2 the
+/// multi-kernel model; `S` is `f64` (the host reference, the default) or
+/// `f32` (what runs on the target). The simulators work in `f64`: the
+/// measurement is rounded to `S` on the way in and the control widened on
+/// the way out. Boxed: the guider is about 100 KiB.
+pub struct GpController<const N: usize, S: Scalar = f64> {
+    guider: Box<Guider<S, N>>,
 }
 
-impl<const N: usize> GpController<N> {
+impl<const N: usize, S: Scalar> GpController<N, S> {
     /// `None` keeps the library's default gain.
     pub fn new(control_gain: Option<f64>, prediction_gain: Option<f64>) -> Self {
-        let mut config = GuiderConfig::<f64>::default();
+        let mut config = GuiderConfig::<S>::default();
         if let Some(g) = control_gain {
-            config.control_gain = g;
+            config.control_gain = S::from_f64(g);
         }
         if let Some(g) = prediction_gain {
-            config.prediction_gain = g;
+            config.prediction_gain = S::from_f64(g);
         }
         GpController {
             guider: Box::new(Guider::new(config)),
         }
     }
 
-    pub fn guider(&self) -> &Guider<f64, N> {
+    pub fn guider(&self) -> &Guider<S, N> {
         &self.guider
     }
 }
 
-impl<const N: usize> Controller for GpController<N> {
+impl<const N: usize, S: Scalar> Controller for GpController<N, S> {
     fn step(&mut self, t: f64, measured: f64, snr: f64, dt: f64) -> f64 {
-        self.guider.frame(t, measured, snr, dt)
+        self.guider
+            .frame(t, S::from_f64(measured), S::from_f64(snr), S::from_f64(dt))
+            .to_f64()
     }
 }
