@@ -1,0 +1,223 @@
+//! Instructions per guide frame of the `f32` guider on the emulated
+//! Cortex-M4F: the QEMU half of `guide-sim bench` (host-tests).
+//!
+//! `cargo run --release --bin bench` (in target-tests) runs, on the target,
+//! the paper's closed loop on case C8 with N(0, 1 px) noise, seed 1, frames
+//! every 2 s, for [`FRAMES`] frames (t = 0 .. 4798 s), first with
+//! `Guider<f32, 1>` and then with `Guider<f32, 2>`, and counts the
+//! instructions of every `frame` call with the SysTick counter
+//! ([`instr`], exact under `-icount shift=0`, resolution 40 instructions;
+//! the two counter reads add about one tick). Only the `frame` call is
+//! measured: the simulation (gear error, noise, the applied sum) is computed
+//! in soft-float `f64` outside it.
+//!
+//! Measured frames: the active ones, t >= [`ACTIVE_FROM_S`] (1,800 frames),
+//! as on the host: the prediction is fully blended in from about 600 s, and
+//! the spectrum (FFT), period tracking and stage discovery run from 600 s;
+//! the GP fit itself runs from t = 20 s. One line per model:
+//!
+//! ```text
+//! bench stages=1 frames=1800 from_s=1200 median=... p90=... max=... state_bytes=... rms_px=...
+//! ```
+//! median and p90 are nearest-rank percentiles, `state_bytes` is
+//! `size_of::<Guider<f32, N>>()`, `rms_px` the residual RMS over the same
+//! frames (a sanity check that the model guides). Nothing is asserted about
+//! speed; the run exits 0 unless it panics or faults.
+#![no_std]
+#![no_main]
+
+#[path = "../instr.rs"]
+mod instr;
+
+use core::cell::UnsafeCell;
+use core::f64::consts::PI;
+use core::hint::black_box;
+use core::mem::MaybeUninit;
+use core::sync::atomic::{AtomicBool, Ordering};
+use cortex_m_rt::{entry, exception, ExceptionFrame};
+use cortex_m_semihosting::{debug, hprintln};
+use mkgp_mount::guider::{Guider, GuiderConfig};
+
+/// Time between frames (s).
+const DT: f64 = 2.0;
+/// Frames of the run: t = 0 .. 4798 s.
+const FRAMES: usize = 2400;
+/// Frames with t >= this (s) are measured.
+const ACTIVE_FROM_S: f64 = 1200.0;
+const ACTIVE_FROM_FRAME: usize = (ACTIVE_FROM_S / DT) as usize;
+const ACTIVE: usize = FRAMES - ACTIVE_FROM_FRAME;
+/// The SNR the guider is given (as in host-tests' closed loop).
+const SNR: f32 = 10.0;
+/// Noise: N(0, 1 px) from this seed.
+const SEED: u64 = 1;
+const SIGMA_PX: f64 = 1.0;
+
+/// Case C8 of `synthetic_cases.csv`: (period s, amplitude px), phases 0.
+const C8: [(f64, f64); 4] = [(288.0, 9.0), (144.0, 6.0), (110.0, 4.5), (55.0, 3.6)];
+const C8_DRIFT_PX_PER_S: f64 = 0.0008;
+
+/// g(t) of case C8, px (as host-tests' `Case::gear_error`).
+fn gear_error(t: f64) -> f64 {
+    let mut periodic = 0.0;
+    for (period, amplitude) in C8 {
+        periodic += amplitude * libm::sin(2.0 * PI * t / period);
+    }
+    periodic + C8_DRIFT_PX_PER_S * t
+}
+
+/// host-tests' noise generator (src/noise.rs): splitmix64 with the paper's
+/// seeding, uniforms in (0, 1), Box-Muller (cos first, then the spare sin).
+struct Gaussian {
+    state: u64,
+    spare: Option<f64>,
+}
+
+const GOLDEN_GAMMA: u64 = 0x9E37_79B9_7F4A_7C15;
+
+impl Gaussian {
+    fn new(seed: u64) -> Self {
+        Gaussian {
+            state: 0x123_4567u64.wrapping_add(seed.wrapping_mul(GOLDEN_GAMMA)),
+            spare: None,
+        }
+    }
+
+    fn next_u64(&mut self) -> u64 {
+        self.state = self.state.wrapping_add(GOLDEN_GAMMA);
+        let mut z = self.state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    fn uniform(&mut self) -> f64 {
+        ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    }
+
+    fn next(&mut self) -> f64 {
+        if let Some(v) = self.spare.take() {
+            return v;
+        }
+        let u1 = self.uniform();
+        let u2 = self.uniform();
+        let r = libm::sqrt(-2.0 * libm::log(u1));
+        let theta = 2.0 * PI * u2;
+        self.spare = Some(r * libm::sin(theta));
+        r * libm::cos(theta)
+    }
+}
+
+/// Static storage for one value, handed out once (a minimal `StaticCell`):
+/// the guiders are too large to keep on the stack comfortably and there is
+/// no heap.
+struct Slot<T> {
+    taken: AtomicBool,
+    value: UnsafeCell<MaybeUninit<T>>,
+}
+
+// SAFETY: the value is reachable only through the one `&mut` that `init`
+// hands out.
+unsafe impl<T> Sync for Slot<T> {}
+
+impl<T> Slot<T> {
+    const fn new() -> Self {
+        Slot {
+            taken: AtomicBool::new(false),
+            value: UnsafeCell::new(MaybeUninit::uninit()),
+        }
+    }
+
+    // The `StaticCell` pattern: `taken` makes the `&mut` unique.
+    #[allow(clippy::mut_from_ref)]
+    fn init(&'static self, value: T) -> &'static mut T {
+        assert!(!self.taken.swap(true, Ordering::SeqCst), "Slot used twice");
+        // SAFETY: first and only use (checked above).
+        unsafe { (*self.value.get()).write(value) }
+    }
+}
+
+// mps2-an386 has 4 MiB of data RAM: both guiders fit side by side.
+static GUIDER_1: Slot<Guider<f32, 1>> = Slot::new();
+static GUIDER_2: Slot<Guider<f32, 2>> = Slot::new();
+static COUNTS: Slot<[u32; ACTIVE]> = Slot::new();
+
+/// Runs the closed loop with `guider`, writes the instructions of each
+/// active frame to `counts` (sorted on return) and prints the result line.
+fn run<const N: usize>(guider: &mut Guider<f32, N>, counts: &mut [u32; ACTIVE]) {
+    let mut gauss = Gaussian::new(SEED);
+    let mut applied = 0.0f64; // U: the sum of the controls applied
+    let mut sum_sq = 0.0f64;
+    instr::start();
+    for k in 0..FRAMES {
+        let t = k as f64 * DT;
+        let residual = gear_error(t) - applied;
+        let input = (residual + SIGMA_PX * gauss.next()) as f32;
+        let (t_in, input, snr, dt) = black_box((t, input, SNR, DT as f32));
+        let before = instr::elapsed_instructions();
+        let control = guider.frame(t_in, input, snr, dt);
+        let after = instr::elapsed_instructions();
+        let control = black_box(control);
+        applied += control as f64;
+        if k >= ACTIVE_FROM_FRAME {
+            counts[k - ACTIVE_FROM_FRAME] = (after - before) as u32;
+            sum_sq += residual * residual;
+        }
+    }
+    counts.sort_unstable();
+    let rank = |p: usize| counts[(p * ACTIVE).div_ceil(100).max(1) - 1];
+    hprintln!(
+        "bench stages={} frames={} from_s={} median={} p90={} max={} state_bytes={} rms_px={:.4}",
+        N,
+        ACTIVE,
+        ACTIVE_FROM_S as u32,
+        rank(50),
+        rank(90),
+        counts[ACTIVE - 1],
+        core::mem::size_of::<Guider<f32, N>>(),
+        libm::sqrt(sum_sq / ACTIVE as f64)
+    );
+}
+
+#[entry]
+fn main() -> ! {
+    hprintln!(
+        "# guider instructions per frame: case C8, 1 px noise (seed 1), dt {} s, {} frames, active t >= {} s",
+        DT as u32,
+        FRAMES,
+        ACTIVE_FROM_S as u32
+    );
+    let counts = COUNTS.init([0; ACTIVE]);
+    run(GUIDER_1.init(Guider::new(GuiderConfig::default())), counts);
+    run(GUIDER_2.init(Guider::new(GuiderConfig::default())), counts);
+    exit(true)
+}
+
+/// Ends the QEMU run with status 0 (`success`) or 1.
+fn exit(success: bool) -> ! {
+    debug::exit(if success {
+        debug::EXIT_SUCCESS
+    } else {
+        debug::EXIT_FAILURE
+    });
+    loop {
+        cortex_m::asm::bkpt();
+    }
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    hprintln!("PANIC: {}", info);
+    exit(false)
+}
+
+#[exception]
+unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
+    hprintln!("HARDFAULT: {:?}", frame);
+    exit(false)
+}
+
+#[exception]
+unsafe fn DefaultHandler(irqn: i16) {
+    hprintln!("unexpected exception or interrupt {}", irqn);
+    exit(false)
+}
