@@ -6,6 +6,7 @@
 //! The shared data (`synthetic_cases.csv`, `phd2-logs/`, `reference-traces/`)
 //! is found by [`data::data_dir`].
 
+pub mod bench;
 pub mod cases;
 pub mod closed_loop;
 pub mod controller;

@@ -3,10 +3,12 @@
 //! ```text
 //! guide-sim table [--cases FILE] [--csv]
 //! guide-sim replay [LOG...] [--csv]
+//! guide-sim bench [--csv] [--host-only]
 //! ```
 //! Arguments are parsed by hand: two subcommands with one flag and one
 //! option each do not justify a dependency.
 
+use host_tests::bench::{self, BenchRow, TargetRun};
 use host_tests::cases;
 use host_tests::controller::{Controller, Hysteresis};
 use host_tests::data::{self, Error};
@@ -22,6 +24,7 @@ use std::sync::Mutex;
 const USAGE: &str = "\
 usage: guide-sim table [--cases FILE] [--csv]
        guide-sim replay [LOG...] [--csv]
+       guide-sim bench [--csv] [--host-only]
 
 table   residual RMS (px, t >= 3600 s) of the synthetic cases for the open loop,
         reactive (hysteresis 0.6), ppec (GP, 1 stage) and mkgp (GP, 2 stages),
@@ -30,6 +33,12 @@ table   residual RMS (px, t >= 3600 s) of the synthetic cases for the open loop,
 replay  PHD2's causal replay of guide logs (default: all logs in the shared
         data): hysteresis 0.7 baseline vs ppec and mkgp (control gain 0.7,
         prediction gain 0.5, dt = the log's exposure).
+bench   cost of one guide frame of the GP guider in the closed loop on case C8
+        with 1 px noise (seed 1), over the frames t >= 1200 s: host time per
+        frame (median, p90) in f64 and f32 for 1 and 2 stages, and for f32 the
+        instructions per frame on an emulated Cortex-M4 (median, max; QEMU runs
+        target-tests' bench binary, about a minute) and the bytes of model
+        state. --host-only skips QEMU. Takes no files but the cases file.
 
 The shared data is found at $MKGP_SHARED (the shared/ directory or its data/),
 else at <repo>/../shared/data.";
@@ -55,6 +64,7 @@ fn main() -> ExitCode {
     match cmd.as_str() {
         "table" => cmd_table(rest),
         "replay" => cmd_replay(rest),
+        "bench" => cmd_bench(rest),
         "-h" | "--help" | "help" => {
             println!("{USAGE}");
             ExitCode::SUCCESS
@@ -266,5 +276,141 @@ fn cmd_replay(args: &[String]) -> ExitCode {
         ExitCode::FAILURE
     } else {
         ExitCode::SUCCESS
+    }
+}
+
+fn cmd_bench(args: &[String]) -> ExitCode {
+    let mut csv = false;
+    let mut host_only = false;
+    for a in args {
+        match a.as_str() {
+            "--csv" => csv = true,
+            "--host-only" => host_only = true,
+            "-h" | "--help" => {
+                println!("{USAGE}");
+                return ExitCode::SUCCESS;
+            }
+            other => return usage_error(&format!("bench: unexpected argument {other:?}")),
+        }
+    }
+    let path = data::cases_file();
+    let case = match cases::load(&path) {
+        Ok(c) => c.into_iter().find(|c| c.name == bench::CASE),
+        Err(e) => {
+            eprintln!("guide-sim: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let Some(case) = case else {
+        eprintln!("guide-sim: {}: no case {}", path.display(), bench::CASE);
+        return ExitCode::FAILURE;
+    };
+    let mut rows = bench::host_rows(&case);
+    let mut status = ExitCode::SUCCESS;
+    if !host_only {
+        if !csv {
+            eprintln!(
+                "guide-sim: running the Cortex-M4 bench in QEMU (target-tests, about a minute)"
+            );
+        }
+        match bench::run_target(&bench::target_tests_dir()) {
+            TargetRun::Rows(r) => rows.extend(r),
+            TargetRun::Unavailable(why) => {
+                eprintln!("guide-sim: note: no cortex-m4 rows: {why}");
+            }
+            TargetRun::Failed(why) => {
+                eprintln!("guide-sim: error: the Cortex-M4 bench failed: {why}");
+                status = ExitCode::FAILURE;
+            }
+        }
+    }
+    if csv {
+        println!("{}", bench::CSV_HEADER);
+        for r in &rows {
+            println!("{}", r.csv());
+        }
+    } else {
+        print_bench(&rows);
+    }
+    status
+}
+
+fn print_bench(rows: &[BenchRow]) {
+    let frames = |platform: &str| {
+        rows.iter()
+            .find(|r| r.platform == platform)
+            .map(|r| r.frames)
+    };
+    println!(
+        "Cost of one guide frame: closed loop on case {}, 1 px noise (seed 1), dt 2 s; frames t >= {} s",
+        bench::CASE,
+        bench::ACTIVE_FROM_S
+    );
+    if let Some(n) = frames("host") {
+        println!("  host: {n} frames of t = 0..10798 s, std::time::Instant around each frame call");
+    }
+    if let Some(n) = frames("cortex-m4") {
+        println!("  cortex-m4: {n} frames of t = 0..4798 s, instructions in QEMU mps2-an386 -icount shift=0");
+    }
+    println!(
+        "{:<10} {:<9} {:>6} {:>10} {:>10} {:>12} {:>12} {:>11}",
+        "platform",
+        "precision",
+        "stages",
+        "us_median",
+        "us_p90",
+        "instr_median",
+        "instr_max",
+        "state_bytes"
+    );
+    let cell = |x: Option<String>| x.unwrap_or_default();
+    for r in rows {
+        println!(
+            "{:<10} {:<9} {:>6} {:>10} {:>10} {:>12} {:>12} {:>11}",
+            r.platform,
+            r.precision,
+            r.stages,
+            cell(r.us_median.map(|v| format!("{v:.2}"))),
+            cell(r.us_p90.map(|v| format!("{v:.2}"))),
+            cell(r.instructions_median.map(|v| v.to_string())),
+            cell(r.instructions_max.map(|v| v.to_string())),
+            r.state_bytes
+        );
+    }
+    let host = |precision: &str, stages: usize| {
+        rows.iter()
+            .find(|r| r.platform == "host" && r.precision == precision && r.stages == stages)
+            .and_then(|r| r.us_median)
+    };
+    if let (Some(a), Some(b)) = (host("f64", 1), host("f64", 2)) {
+        print!("host median ratios: f64 2/1 stages {:.2}", b / a);
+        if let (Some(c), Some(d)) = (host("f32", 1), host("f32", 2)) {
+            print!(
+                ", f32 2/1 stages {:.2}, f32/f64 {:.2} (1 stage) {:.2} (2 stages)",
+                d / c,
+                c / a,
+                d / b
+            );
+        }
+        println!();
+    }
+    let met = |ok: bool| if ok { "met" } else { "NOT met" };
+    if let Some(r) = rows
+        .iter()
+        .find(|r| r.platform == "cortex-m4" && r.stages == 2)
+    {
+        let median = r.instructions_median.unwrap_or(u64::MAX);
+        println!(
+            "goal, 2 stages on the Cortex-M4: median <= 1,000,000 instructions per frame: {median} ({})",
+            met(median <= bench::INSTRUCTIONS_GOAL)
+        );
+    }
+    if let Some(r) = rows.iter().find(|r| r.precision == "f32" && r.stages == 2) {
+        println!(
+            "goal, 2 stages in f32: state <= {} bytes (64 KiB): {} ({})",
+            bench::STATE_GOAL_BYTES,
+            r.state_bytes,
+            met(r.state_bytes <= bench::STATE_GOAL_BYTES)
+        );
     }
 }
