@@ -116,7 +116,17 @@ fn replay_bad_log_fails_but_others_run() {
 
 #[test]
 fn unknown_subcommand_is_a_usage_error() {
-    let o = guide_sim(&["bench"]);
+    let o = guide_sim(&["frobnicate"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("usage:"));
+}
+
+#[test]
+fn bench_unknown_option_is_a_usage_error() {
+    // Only the argument check: the bench itself is timing-dependent and
+    // runs QEMU, so no test runs it (test.sh prints its figures).
+    let o = guide_sim(&["bench", "--frobnicate"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("usage:"));
+    assert!(stdout(&o).is_empty());
 }
