@@ -40,8 +40,12 @@ pub const RESOLUTION_BEATS: f64 = 1.5;
 /// Evidence gate thresholds on the smoothed amplitude ratio.
 pub const GATE_OFF: f64 = 0.15;
 pub const GATE_FULL: f64 = 0.35;
-/// Weight of a new amplitude ratio in the smoothed one, per frame.
-pub const RATIO_SMOOTHING: f64 = 0.1;
+/// Weight of a new amplitude ratio in the smoothed one, per frame: a gate
+/// opens over some 30 frames, so that one lucky spectrum does not let a
+/// stage in.
+pub const RATIO_SMOOTHING: f64 = 0.03;
+/// The worm's period convergence (0..=1) from which the search runs.
+pub const SEARCH_MIN_CONVERGENCE: f64 = 0.3;
 /// A found stage whose smoothed ratio is below this after this many frames
 /// is given up and searched for again.
 pub const FORGET_RATIO: f64 = 0.5 * GATE_OFF;
@@ -128,6 +132,16 @@ impl<const N: usize> Discovery<N> {
         worm_power: f64,
         span_s: f64,
     ) {
+        // The notches and the guard stand around the worm's period: while
+        // that is still far from its spectral estimate there is nothing to
+        // place them by, and what the search finds is noise (log 04).
+        if trackers[0].convergence() < SEARCH_MIN_CONVERGENCE {
+            for stage in &mut self.stages {
+                stage.line_period_s = None;
+                stage.ratio_now = 0.0;
+            }
+            return;
+        }
         for s in 1..N {
             let mut known = [0.0; N];
             let mut n_known = 0;
