@@ -10,6 +10,9 @@
 #                    fails if the STM32F411CE build exceeds 128 KiB of flash
 #                    or 96 KiB of static RAM (the rest of its 128 KiB is left
 #                    for the stack).
+#   5. bench:        cd host-tests && cargo run --release --bin guide-sim --
+#                    bench --csv   (prints the figures; asserts nothing about
+#                    speed; about a minute, mostly QEMU)
 #
 # Exits non-zero on the first failure.
 set -euo pipefail
@@ -120,5 +123,14 @@ echo "ELF per chip: $OUT/mkgp-mount-<chip>"
 [ "$f411_ram" -le "$F411_RAM_MAX" ] ||
     die "stm32f411ce static RAM $f411_ram B exceeds the budget of $F411_RAM_MAX B"
 echo "stm32f411ce within budget (flash <= 128 KiB, static RAM <= 96 KiB)"
+
+# --- 5. bench -----------------------------------------------------------------
+# Figures only, nothing asserted about speed: host time per frame (f64/f32,
+# 1 and 2 stages) and, from target-tests' bench binary in QEMU, instructions
+# per frame of the f32 guider on the Cortex-M4 and the bytes of model state.
+if [ "$HAVE_HOST_TESTS" = 1 ]; then
+    step "bench (host-tests: cargo run --release --bin guide-sim -- bench --csv)"
+    (cd host-tests && cargo run --release --bin guide-sim -- bench --csv </dev/null)
+fi
 
 step "all checks passed"
