@@ -1,0 +1,502 @@
+//! Every bad input to the guider has a defined, tested outcome: never a
+//! panic, never a NaN or an infinity out, and the fault counters say what
+//! happened. Each check runs for `f64` and `f32` and for N = 1 and 2.
+//!
+//! The guider is first warmed up in a small noise-free closed loop on the
+//! single-sinusoid gear error g(t) = 9 sin(2 pi t / 432) + 0.0008 t px
+//! (frames every 2 s, SNR 10), long enough for the model to be blended in;
+//! the bad input is then injected and the loop continues.
+
+use mkgp_mount::grid::{CELL_S, GRID_CELLS};
+use mkgp_mount::guider::{Faults, Guider, GuiderConfig, DITHER_FRAMES};
+use mkgp_mount::scalar::Scalar;
+use std::f64::consts::PI;
+
+const DT: f64 = 2.0;
+const SNR: f64 = 10.0;
+/// Largest control any frame of these runs may produce (px): the gear error
+/// never moves more than 0.13 px/s, and the residuals stay within a few px.
+const SANE_PX: f64 = 20.0;
+
+fn gear(t: f64) -> f64 {
+    9.0 * (2.0 * PI * t / 432.0).sin() + 0.0008 * t
+}
+
+/// A guider in a closed loop: U is the sum of the controls applied.
+struct Sim<S: Scalar, const N: usize> {
+    guider: Box<Guider<S, N>>,
+    t: f64,
+    applied: f64,
+}
+
+impl<S: Scalar, const N: usize> Sim<S, N> {
+    fn new() -> Self {
+        Sim {
+            guider: Box::new(Guider::new(GuiderConfig::default())),
+            t: 0.0,
+            applied: 0.0,
+        }
+    }
+
+    /// The error the camera would measure now.
+    fn measured(&self) -> f64 {
+        gear(self.t) - self.applied
+    }
+
+    /// Apply a control returned for the current frame and advance the clock.
+    fn apply(&mut self, control: S) -> f64 {
+        let c = control.to_f64();
+        assert!(c.is_finite(), "control {c} at {} s", self.t);
+        self.applied += c;
+        self.t += DT;
+        c
+    }
+
+    /// One ordinary frame.
+    fn step(&mut self) -> f64 {
+        let y = S::from_f64(self.measured());
+        let c = self
+            .guider
+            .frame(self.t, y, S::from_f64(SNR), S::from_f64(DT));
+        self.apply(c)
+    }
+
+    /// Ordinary frames until `until` s; returns the largest |control|.
+    fn run_until(&mut self, until: f64) -> f64 {
+        let mut max: f64 = 0.0;
+        while self.t < until {
+            max = max.max(self.step().abs());
+        }
+        max
+    }
+
+    /// RMS of the residual g - U over ordinary frames until `until` s.
+    fn residual_rms_until(&mut self, until: f64) -> f64 {
+        let (mut sum_sq, mut n) = (0.0, 0);
+        while self.t < until {
+            let r = self.measured();
+            sum_sq += r * r;
+            n += 1;
+            let c = self.step();
+            assert!(c.abs() <= SANE_PX, "control {c} at {} s", self.t);
+        }
+        (sum_sq / n as f64).sqrt()
+    }
+
+    fn faults(&self) -> Faults {
+        self.guider.faults()
+    }
+}
+
+/// Long enough for the period to converge and the model to be blended in.
+const WARM_S: f64 = 1800.0;
+
+fn warm<S: Scalar, const N: usize>() -> Sim<S, N> {
+    let mut sim = Sim::<S, N>::new();
+    let max = sim.run_until(WARM_S);
+    assert!(max <= SANE_PX, "warm-up control {max}");
+    assert!(
+        sim.guider.blend_weight() > 0.0,
+        "model not blended in after warm-up"
+    );
+    assert_eq!(sim.faults(), Faults::default());
+    sim
+}
+
+/// Non-finite input: handled as a frame without a star (the prediction
+/// alone, a fraction of a px here), counted in `bad_input`.
+fn non_finite_input<S: Scalar, const N: usize>() {
+    // On the very first frame (no model yet): control 0.
+    let mut fresh = Sim::<S, N>::new();
+    let c = fresh.guider.frame(
+        0.0,
+        S::from_f64(f64::NAN),
+        S::from_f64(SNR),
+        S::from_f64(DT),
+    );
+    assert_eq!(c.to_f64(), 0.0);
+    assert_eq!(fresh.faults().bad_input, 1);
+
+    let mut sim = warm::<S, N>();
+    let bad = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY];
+    for (i, &x) in bad.iter().enumerate() {
+        let c = sim
+            .guider
+            .frame(sim.t, S::from_f64(x), S::from_f64(SNR), S::from_f64(DT));
+        let c = sim.apply(c);
+        // What a dark frame gives: the predicted change over one frame.
+        assert!(c.abs() <= 1.0, "input {x}: control {c}");
+        assert_eq!(sim.faults().bad_input, i as u32 + 1);
+    }
+    // A dark frame called directly is not a fault.
+    let c = sim.guider.dark_frame(sim.t, S::from_f64(DT));
+    sim.apply(c);
+    assert!(c.to_f64().abs() <= 1.0);
+    let max = sim.run_until(WARM_S + 600.0);
+    assert!(max <= SANE_PX);
+    assert_eq!(
+        sim.faults(),
+        Faults {
+            bad_input: 3,
+            ..Faults::default()
+        }
+    );
+}
+
+/// NaN, infinite, zero or negative SNR: unknown, i.e. SNR 10. The controls
+/// are exactly those of a guider given SNR 10, and nothing is counted.
+fn bad_snr_is_unknown<S: Scalar, const N: usize>() {
+    let mut reference = Sim::<S, N>::new();
+    let mut sim = Sim::<S, N>::new();
+    let bad = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 0.0, -0.0, -5.0];
+    let mut k = 0;
+    while sim.t < 1500.0 {
+        let y = S::from_f64(sim.measured());
+        let snr = bad[k % bad.len()];
+        let c = sim
+            .guider
+            .frame(sim.t, y, S::from_f64(snr), S::from_f64(DT));
+        let c = sim.apply(c);
+        let r = reference.step();
+        assert_eq!(c, r, "SNR {snr} at {} s", sim.t);
+        k += 1;
+    }
+    assert_eq!(sim.faults(), Faults::default());
+}
+
+/// A frame whose time is not finite or earlier than the last frame's is
+/// ignored: control 0, counted in `bad_time`, and the frames after it get
+/// exactly the controls they would have got without it. A repeated time is
+/// not a fault.
+fn bad_time_is_ignored<S: Scalar, const N: usize>() {
+    let mut reference = warm::<S, N>();
+    let mut sim = warm::<S, N>();
+    let bad = [
+        f64::NAN,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        sim.t - 2.0 * DT,
+        -1.0,
+    ];
+    for (i, &t) in bad.iter().enumerate() {
+        let y = S::from_f64(sim.measured());
+        let c = sim.guider.frame(t, y, S::from_f64(SNR), S::from_f64(DT));
+        assert_eq!(c.to_f64(), 0.0, "time {t}");
+        let c = sim.guider.dark_frame(t, S::from_f64(DT));
+        assert_eq!(c.to_f64(), 0.0, "dark frame, time {t}");
+        assert_eq!(sim.faults().bad_time, 2 * (i as u32 + 1));
+        // The good frame after it is unaffected.
+        assert_eq!(sim.step(), reference.step(), "after time {t}");
+    }
+    // The same time twice is accepted (a zero interval).
+    let t = sim.t - DT;
+    let c = sim
+        .guider
+        .frame(t, S::from_f64(0.5), S::from_f64(SNR), S::from_f64(DT));
+    assert!(c.to_f64().is_finite() && c.to_f64().abs() <= SANE_PX);
+    assert_eq!(sim.faults().bad_time, 2 * bad.len() as u32);
+    let max = sim.run_until(WARM_S + 600.0);
+    assert!(max <= SANE_PX);
+    assert_eq!(
+        sim.faults(),
+        Faults {
+            bad_time: 2 * bad.len() as u32,
+            ..Faults::default()
+        }
+    );
+}
+
+/// A forward jump longer than the grid's window restarts learning (counted
+/// in `grid_restarts`); the guider keeps guiding and learns again. A jump
+/// shorter than the window is not a fault.
+fn time_jumps<S: Scalar, const N: usize>() {
+    let window = GRID_CELLS as f64 * CELL_S;
+    let mut sim = warm::<S, N>();
+    // Shorter than the window: the gap's cells are filled, nothing counted.
+    sim.t += 0.5 * window;
+    let max = sim.run_until(sim.t + 600.0);
+    assert!(max <= SANE_PX);
+    assert_eq!(sim.faults(), Faults::default());
+    // Longer than the window.
+    sim.t += 3.0 * window;
+    let restart_at = sim.t;
+    let first = sim.step();
+    assert!(first.abs() <= SANE_PX);
+    assert_eq!(sim.faults().grid_restarts, 1);
+    // The first frame after the gap is learned at the midpoint of the gap,
+    // so the second frame, a window and a half later, restarts the grid
+    // again: one gap counts twice (see the report; harmless otherwise).
+    sim.step();
+    assert_eq!(sim.faults().grid_restarts, 2);
+    // Keeps guiding, and learns the gear error again.
+    let max = sim.run_until(restart_at + 2400.0);
+    assert!(max <= SANE_PX);
+    let rms = sim.residual_rms_until(restart_at + 3600.0);
+    assert!(rms < 0.5, "residual RMS after the restart {rms}");
+    assert_eq!(
+        sim.faults(),
+        Faults {
+            grid_restarts: 2,
+            ..Faults::default()
+        }
+    );
+    // An absurd jump (the clock's precision is then coarser than a frame:
+    // every frame has the same time), with sane inputs. Its first frame
+    // fits the old cells around a centre 1e300 s away: the trend basis is
+    // degenerate, the fit fails (counted) and the frame falls back to the
+    // reactive term. The jump then restarts the grid (twice, as above).
+    for k in 0..50 {
+        let t = 1e300 + k as f64 * DT;
+        let y = S::from_f64(0.5 + 0.5 * (k as f64).sin());
+        let c = sim.guider.frame(t, y, S::from_f64(SNR), S::from_f64(DT));
+        let c = c.to_f64();
+        assert!(c.abs() <= SANE_PX, "control {c} after a jump to 1e300 s");
+        if k == 0 {
+            assert_eq!(sim.faults().inference_failures, 1);
+            assert_eq!(sim.guider.blend_weight(), 0.0);
+        }
+    }
+    assert_eq!(
+        sim.faults(),
+        Faults {
+            grid_restarts: 4,
+            inference_failures: 1,
+            ..Faults::default()
+        }
+    );
+}
+
+/// A time step that is NaN, infinite, zero or negative counts as 0 s: the
+/// control stays finite and sane, and nothing is counted.
+fn bad_time_step<S: Scalar, const N: usize>() {
+    let mut sim = warm::<S, N>();
+    let bad = [f64::NAN, f64::INFINITY, 0.0, -2.0, f64::NEG_INFINITY];
+    for _ in 0..3 {
+        for &dt in &bad {
+            let y = S::from_f64(sim.measured());
+            let c = sim
+                .guider
+                .frame(sim.t, y, S::from_f64(SNR), S::from_f64(dt));
+            let c = sim.apply(c);
+            assert!(c.abs() <= SANE_PX, "time step {dt}: control {c}");
+            let c = sim.guider.dark_frame(sim.t, S::from_f64(dt));
+            let c = sim.apply(c);
+            assert!(c.abs() <= 1.0, "dark frame, time step {dt}: control {c}");
+        }
+    }
+    let rms = sim.residual_rms_until(sim.t + 600.0);
+    assert!(rms < 1.0, "residual RMS after bad time steps {rms}");
+    assert_eq!(sim.faults(), Faults::default());
+}
+
+/// A dither with a zero or non-finite rate or a non-finite amount is
+/// refused (counted in `bad_dithers`) and changes nothing; a good dither
+/// gives [`DITHER_FRAMES`] frames of proportional control.
+fn dithers<S: Scalar, const N: usize>() {
+    let mut reference = warm::<S, N>();
+    let mut sim = warm::<S, N>();
+    let bad = [
+        (1.0, 0.0),
+        (1.0, -0.0),
+        (f64::NAN, 0.01),
+        (f64::INFINITY, 0.01),
+        (1.0, f64::NAN),
+        (0.0, 0.0),
+        (f64::NEG_INFINITY, f64::INFINITY),
+    ];
+    for (i, &(amount, rate)) in bad.iter().enumerate() {
+        sim.guider.dithered(S::from_f64(amount), S::from_f64(rate));
+        assert_eq!(sim.faults().bad_dithers, i as u32 + 1);
+        assert_eq!(sim.step(), reference.step(), "after dither {amount}/{rate}");
+    }
+    // A good dither: proportional control while settling.
+    let gain = sim.guider.config().control_gain;
+    sim.guider.dithered(S::from_f64(3.0), S::from_f64(0.01));
+    for _ in 0..DITHER_FRAMES {
+        let y = S::from_f64(sim.measured() + 3.0);
+        let c = sim
+            .guider
+            .frame(sim.t, y, S::from_f64(SNR), S::from_f64(DT));
+        assert_eq!(c, gain * y);
+        sim.apply(c);
+    }
+    // A NaN input while settling gives 0, not NaN (and is not counted: the
+    // frame is learned as dark anyway).
+    sim.guider.dithered(S::from_f64(1.0), S::from_f64(0.01));
+    let c = sim.guider.frame(
+        sim.t,
+        S::from_f64(f64::NAN),
+        S::from_f64(SNR),
+        S::from_f64(DT),
+    );
+    assert_eq!(c.to_f64(), 0.0);
+    sim.apply(c);
+    // An absurd but finite offset (1e60 s) moves gear time beyond the
+    // window: the grid restarts; guiding goes on.
+    sim.guider.dithered(S::from_f64(1e30), S::from_f64(1e-30));
+    let max = sim.run_until(sim.t + 600.0);
+    assert!(max <= SANE_PX);
+    assert_eq!(sim.faults().bad_dithers, bad.len() as u32);
+    assert_eq!(sim.faults().bad_input, 0);
+    assert!(sim.faults().grid_restarts <= 1);
+    assert_eq!(sim.faults().bad_time, 0);
+}
+
+/// A run long enough to fill the 2048-cell grid and wrap it twice: the
+/// controls stay finite and sane, and the model keeps correcting.
+fn grid_wraps<S: Scalar, const N: usize>() {
+    let window = GRID_CELLS as f64 * CELL_S; // 10,240 s
+    let mut sim = Sim::<S, N>::new();
+    let max = sim.run_until(2.0 * window);
+    assert!(max <= SANE_PX, "{max}");
+    let rms = sim.residual_rms_until(2.0 * window + 1800.0);
+    assert!(rms < 0.5, "residual RMS after wrapping the grid {rms}");
+    assert_eq!(sim.faults(), Faults::default());
+}
+
+/// Huge but finite inputs (1e30 px): the control is finite (the reactive
+/// term answers in proportion, which is the defined outcome for a finite
+/// input), and once the inputs are sane again so are the controls. In `f32`
+/// the same holds at 1e38, next to the largest finite `f32`.
+fn huge_inputs<S: Scalar, const N: usize>() {
+    let mut sim = warm::<S, N>();
+    let gain = sim.guider.config().control_gain.to_f64();
+    for &x in &[1e30, -1e30, 1e30] {
+        let c = sim
+            .guider
+            .frame(sim.t, S::from_f64(x), S::from_f64(SNR), S::from_f64(DT));
+        // Not applied to the simulated mount: it would leave the sky.
+        let c = c.to_f64();
+        assert!(c.is_finite(), "input {x}: control {c}");
+        assert!(c.abs() <= 2.0 * gain * x.abs(), "input {x}: control {c}");
+        sim.t += DT;
+    }
+    // Finite controls afterwards (not sane ones: see
+    // `a_single_outlier_poisons_the_model` below). Not applied.
+    let mut max: f64 = 0.0;
+    for _ in 0..300 {
+        let y = S::from_f64(sim.measured());
+        let c = sim
+            .guider
+            .frame(sim.t, y, S::from_f64(SNR), S::from_f64(DT));
+        let c = c.to_f64();
+        assert!(
+            c.is_finite(),
+            "control {c} at {} s after 1e30 inputs",
+            sim.t
+        );
+        max = max.max(c.abs());
+        sim.t += DT;
+    }
+    println!("largest control in the 600 s after 1e30 px inputs: {max:.2e} px");
+    // A finite input is not a bad input, and nothing else went wrong.
+    assert_eq!(sim.faults(), Faults::default());
+
+    // Inputs at the edge of the scalar's range (3e38 in f32, 1e307 in
+    // f64): the controls stay finite, and the only fault that may be counted
+    // is failed fits (in f32 the cells overflow and every fit fails; the
+    // frames fall back to the reactive term).
+    let edge = if S::from_f64(1e39).is_finite() {
+        1e307
+    } else {
+        3e38
+    };
+    let mut sim = warm::<S, N>();
+    for _ in 0..5 {
+        let c = sim
+            .guider
+            .frame(sim.t, S::from_f64(edge), S::from_f64(SNR), S::from_f64(DT));
+        assert!(c.to_f64().is_finite(), "input {edge:e}: control {c:?}");
+        sim.t += DT;
+    }
+    for _ in 0..300 {
+        let y = S::from_f64(sim.measured());
+        let c = sim
+            .guider
+            .frame(sim.t, y, S::from_f64(SNR), S::from_f64(DT));
+        assert!(
+            c.to_f64().is_finite(),
+            "control {c:?} after {edge:e} inputs"
+        );
+        sim.t += DT;
+    }
+    let f = sim.faults();
+    println!("faults after five {edge:e} px inputs: {f:?}");
+    // In f32 the cells overflow to infinity and every fit fails; in f64
+    // the fits still succeed (and predict garbage, as above).
+    if edge < 1e39 {
+        assert!(f.inference_failures > 0, "{f:?}");
+    }
+    assert_eq!(
+        f,
+        Faults {
+            inference_failures: f.inference_failures,
+            ..Faults::default()
+        }
+    );
+}
+
+/// LIBRARY ISSUE (ignored until fixed): one absurd measurement poisons the
+/// model for the life of the grid (2.8 h). After a single 1e30 px input the
+/// controls on sane inputs reach ~1e28 px (f64 and f32, N = 1 and 2) for the
+/// whole window; a single 1e4 px input gives controls of up to ~300 px, a
+/// single 100 px input up to ~2 px. No fault is counted. An input far beyond
+/// any plausible guide error should be treated like a non-finite one (a dark
+/// frame, counted in `bad_input`).
+fn single_outlier<S: Scalar, const N: usize>() {
+    let mut sim = warm::<S, N>();
+    let c = sim
+        .guider
+        .frame(sim.t, S::from_f64(1e30), S::from_f64(SNR), S::from_f64(DT));
+    assert!(c.to_f64().is_finite());
+    sim.t += DT;
+    let mut max: f64 = 0.0;
+    for _ in 0..1000 {
+        max = max.max(sim.step().abs());
+    }
+    assert!(
+        max <= SANE_PX,
+        "largest control after one 1e30 px input: {max:e} px"
+    );
+}
+
+#[test]
+#[ignore = "library issue: a single absurd input poisons the model (see single_outlier)"]
+fn a_single_outlier_poisons_the_model() {
+    single_outlier::<f64, 1>();
+    single_outlier::<f32, 1>();
+}
+
+macro_rules! for_each_variant {
+    ($($check:ident),* $(,)?) => {
+        $(mod $check {
+            #[test]
+            fn f64_n1() {
+                super::$check::<f64, 1>();
+            }
+            #[test]
+            fn f64_n2() {
+                super::$check::<f64, 2>();
+            }
+            #[test]
+            fn f32_n1() {
+                super::$check::<f32, 1>();
+            }
+            #[test]
+            fn f32_n2() {
+                super::$check::<f32, 2>();
+            }
+        })*
+    };
+}
+
+for_each_variant!(
+    non_finite_input,
+    bad_snr_is_unknown,
+    bad_time_is_ignored,
+    time_jumps,
+    bad_time_step,
+    dithers,
+    grid_wraps,
+    huge_inputs,
+);
