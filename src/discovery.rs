@@ -127,7 +127,7 @@ impl<const N: usize> Discovery<N> {
     /// `worm_power` is the power of the worm's line, `span_s` the data span.
     pub fn scan<S: Scalar>(
         &mut self,
-        spectrum: &Spectrum<S>,
+        spectrum: &Spectrum<'_, S>,
         trackers: &mut [PeriodTracker; N],
         worm_power: f64,
         span_s: f64,

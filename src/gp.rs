@@ -12,7 +12,7 @@
 //! on the prediction point and scaled (t' = (t - t_pred) / 1000 s): the
 //! fitted mean does not depend on that choice, but `f32` does.
 
-use crate::grid::{Grid, CELL_S};
+use crate::grid::{Grid, CELL_S, GRID_CELLS};
 use crate::kernel::Kernel;
 use crate::ldlt::{dot, FactorError, Ldlt};
 use crate::scalar::Scalar;
@@ -78,11 +78,16 @@ impl<S: Scalar> Gp<S> {
     }
 
     /// Fit the model around `centre` (seconds, relative to the grid origin).
+    /// `scratch` (at least [`GRID_CELLS`] long) holds the kernel at the lags
+    /// between cells: they are multiples of 5 s, and the subset's few
+    /// hundred distinct lags are each evaluated once instead of once per
+    /// Gram entry.
     pub fn infer<const N: usize>(
         &mut self,
         grid: &Grid<S>,
         kernel: &Kernel<S, N>,
         centre: f64,
+        scratch: &mut [S],
     ) -> Result<(), InferError> {
         self.valid = false;
         let total = grid.len();
@@ -92,17 +97,29 @@ impl<S: Scalar> Gp<S> {
         self.select(grid, kernel, centre);
         let n = self.n;
 
-        // Gram matrix. Lags between cells are exact multiples of 5 s.
+        // Gram matrix. Lags between cells are exact multiples of 5 s; a
+        // non-finite entry marks a lag not evaluated yet (the kernel is
+        // finite: bounded by its variances).
         let cell = S::from_f64(CELL_S);
+        let len = GRID_CELLS.min(scratch.len());
+        let lags = &mut scratch[..len];
+        let unknown = S::ZERO / S::ZERO;
+        lags.fill(unknown);
         self.chol.set_dim(n);
         for i in 0..n {
-            let ci = self.cells[i] as i32;
-            let var_i = grid.cell(ci as usize).1;
+            let ci = self.cells[i] as usize;
+            let var_i = grid.cell(ci).1;
             let cells = self.cells;
             let row = self.chol.row_mut(i);
             for (j, r) in row.iter_mut().enumerate() {
-                let lag = S::from_f64((ci - cells[j] as i32) as f64) * cell;
-                *r = kernel.full(lag);
+                let m = ci - cells[j] as usize;
+                let Some(k) = lags.get_mut(m) else {
+                    return Err(InferError::Degenerate);
+                };
+                if !k.is_finite() {
+                    *k = kernel.full(S::from_usize(m) * cell);
+                }
+                *r = *k;
             }
             row[i] += var_i;
         }

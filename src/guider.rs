@@ -13,6 +13,7 @@
 //! "correction".
 
 use crate::discovery::Discovery;
+use crate::fft::FFT_LEN;
 use crate::gp::Gp;
 use crate::grid::{Grid, Push, CELL_S};
 use crate::kernel::Kernel;
@@ -92,7 +93,11 @@ pub struct Faults {
 pub struct Guider<S: Scalar, const N: usize> {
     config: GuiderConfig<S>,
     grid: Grid<S>,
-    spectrum: Spectrum<S>,
+    /// Work buffer shared by the spectrum and the inference (16 KiB in
+    /// `f32`): the spectrum's lines are read as soon as it is computed.
+    scratch: [S; FFT_LEN],
+    /// A cell has completed since the lines were last read.
+    lines_stale: bool,
     gp: Gp<S>,
     kernel: Kernel<S, N>,
     trackers: [PeriodTracker; N],
@@ -146,7 +151,8 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         Self {
             config,
             grid: Grid::new(),
-            spectrum: Spectrum::new(),
+            scratch: [S::ZERO; FFT_LEN],
+            lines_stale: true,
             gp: Gp::new(),
             kernel: Kernel::new(&periods, &gates),
             trackers,
@@ -171,7 +177,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     /// Forget the data (not the learned periods, nor the fault counters).
     pub fn reset(&mut self) {
         self.grid.clear();
-        self.spectrum.invalidate();
+        self.lines_stale = true;
         self.gp.clear();
         self.worm_line_s = None;
         self.discovery.clear();
@@ -370,9 +376,9 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             .push(timestamp, self.sum_control + measurement, variance)
         {
             Push::Accepted { new_cells: 0 } | Push::Rejected => {}
-            Push::Accepted { .. } => self.spectrum.invalidate(),
+            Push::Accepted { .. } => self.lines_stale = true,
             Push::Restarted => {
-                self.spectrum.invalidate();
+                self.lines_stale = true;
                 self.faults.grid_restarts = self.faults.grid_restarts.saturating_add(1);
             }
         }
@@ -395,15 +401,17 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         if self.config.compute_period
             && timestamp > self.config.periods_for_estimation * self.trackers[0].period_s
         {
-            if !self.spectrum.is_valid() {
-                self.spectrum.compute(&self.grid);
-                let worm = self.spectrum.strongest(0, NYQUIST_BIN, |_| true);
-                self.worm_line_s = worm.map(|l| l.period_s);
-                if N > 1 {
-                    let span = self.grid.len() as f64 * CELL_S;
-                    let power = worm.map_or(0.0, |l| l.power);
-                    self.discovery
-                        .scan(&self.spectrum, &mut self.trackers, power, span);
+            if self.lines_stale {
+                self.lines_stale = false;
+                if let Some(spectrum) = Spectrum::compute(&self.grid, &mut self.scratch) {
+                    let worm = spectrum.strongest(0, NYQUIST_BIN, |_| true);
+                    self.worm_line_s = worm.map(|l| l.period_s);
+                    if N > 1 {
+                        let span = self.grid.len() as f64 * CELL_S;
+                        let power = worm.map_or(0.0, |l| l.power);
+                        self.discovery
+                            .scan(&spectrum, &mut self.trackers, power, span);
+                    }
                 }
             }
             if let Some(p) = self.worm_line_s {
@@ -415,7 +423,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         self.kernel = Kernel::new(&periods, &self.gates);
         let failed = self
             .gp
-            .infer(&self.grid, &self.kernel, centre - origin)
+            .infer(&self.grid, &self.kernel, centre - origin, &mut self.scratch)
             .is_err();
         if failed {
             self.faults.inference_failures = self.faults.inference_failures.saturating_add(1);

@@ -35,39 +35,23 @@ pub struct Line {
     pub power: f64,
 }
 
-/// Power spectrum work buffer: 4096 scalars (16 KiB in `f32`).
-pub struct Spectrum<S> {
-    buf: [S; FFT_LEN],
+/// The power spectrum of the grid, in a borrowed work buffer of 4096
+/// scalars (16 KiB in `f32`). The guider reads the lines it needs at once and
+/// then lends the same buffer to the inference as scratch.
+pub struct Spectrum<'a, S> {
+    buf: &'a [S; FFT_LEN],
     /// Lowest meaningful bin, `ceil(FFT_LEN / cells)`: below it the zero
     /// padding, not the data, sets the resolution.
     low_bin: usize,
-    valid: bool,
 }
 
-impl<S: Scalar> Spectrum<S> {
-    pub fn new() -> Self {
-        Self {
-            buf: [S::ZERO; FFT_LEN],
-            low_bin: 1,
-            valid: false,
-        }
-    }
-
-    /// Whether [`compute`](Self::compute) has produced a spectrum.
-    pub fn is_valid(&self) -> bool {
-        self.valid
-    }
-
-    pub fn invalidate(&mut self) {
-        self.valid = false;
-    }
-
-    /// Compute the power spectrum of the grid's cells. Needs two cells.
-    pub fn compute(&mut self, grid: &Grid<S>) -> bool {
+impl<'a, S: Scalar> Spectrum<'a, S> {
+    /// Compute the power spectrum of the grid's cells in `buf`. Needs two
+    /// cells.
+    pub fn compute(grid: &Grid<S>, buf: &'a mut [S; FFT_LEN]) -> Option<Self> {
         let n = grid.len();
-        self.valid = false;
         if n < 2 {
-            return false;
+            return None;
         }
         // Least-squares line g ≈ w0 + w1 t through the cells, t the cell
         // centre, with the reference implementation's ridge of 1e-3 on both
@@ -104,32 +88,31 @@ impl<S: Scalar> Spectrum<S> {
         let step = S::from_f64(w1 * CELL_S);
 
         let two_pi_over = S::from_f64(2.0 * core::f64::consts::PI / (nf - 1.0));
-        for (i, x) in self.buf.iter_mut().enumerate().take(n) {
+        for (i, x) in buf.iter_mut().enumerate().take(n) {
             let g = grid.cell(i).0;
             let i_s = S::from_usize(i);
             let detrended = g - level - step * (i_s - half);
             let hamming = S::from_f64(0.54) - S::from_f64(0.46) * (two_pi_over * i_s).cos();
             *x = detrended * hamming;
         }
-        for x in self.buf[n..].iter_mut() {
+        for x in buf[n..].iter_mut() {
             *x = S::ZERO;
         }
-        power_spectrum(&mut self.buf);
-        self.low_bin = FFT_LEN.div_ceil(n).min(NYQUIST_BIN);
+        power_spectrum(buf);
+        let low_bin = FFT_LEN.div_ceil(n).min(NYQUIST_BIN);
         // Lines slower than MAX_PERIOD_S are drift.
         let drift_bins = period_bin(MAX_PERIOD_S);
-        for k in self.low_bin..=NYQUIST_BIN {
+        for k in low_bin..=NYQUIST_BIN {
             if (k as f64) < drift_bins {
-                self.buf[k] = S::ZERO;
+                buf[k] = S::ZERO;
             }
         }
-        self.valid = true;
-        true
+        Some(Self { buf, low_bin })
     }
 
     /// Power of bin `k` (0 outside the meaningful range).
     pub fn power(&self, k: usize) -> f64 {
-        if self.valid && k >= self.low_bin && k <= NYQUIST_BIN {
+        if k >= self.low_bin && k <= NYQUIST_BIN {
             self.buf[k].to_f64()
         } else {
             0.0
@@ -145,9 +128,6 @@ impl<S: Scalar> Spectrum<S> {
     /// holds, refined by a parabola through its neighbours (which may lie
     /// outside the band). The first of equal maxima wins.
     pub fn strongest(&self, lo: usize, hi: usize, keep: impl Fn(usize) -> bool) -> Option<Line> {
-        if !self.valid {
-            return None;
-        }
         let lo = lo.max(self.low_bin);
         let hi = hi.min(NYQUIST_BIN);
         let mut best: Option<(usize, f64)> = None;
@@ -181,12 +161,6 @@ impl<S: Scalar> Spectrum<S> {
     }
 }
 
-impl<S: Scalar> Default for Spectrum<S> {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -205,8 +179,8 @@ mod tests {
     fn finds_a_tone_and_its_period() {
         let pi2 = 2.0 * core::f64::consts::PI;
         let g = grid_of(|t| 9.0 * libm::sin(pi2 * t / 432.0) + 0.001 * t, 8000.0);
-        let mut s: Spectrum<f64> = Spectrum::new();
-        assert!(s.compute(&g));
+        let mut buf = [0.0; FFT_LEN];
+        let s = Spectrum::compute(&g, &mut buf).unwrap();
         let line = s.strongest(0, NYQUIST_BIN, |_| true).unwrap();
         assert!((line.period_s - 432.0).abs() < 2.0, "{line:?}");
     }
@@ -218,8 +192,8 @@ mod tests {
             |t| 9.0 * libm::sin(pi2 * t / 288.0) + 4.5 * libm::sin(pi2 * t / 110.0),
             8000.0,
         );
-        let mut s: Spectrum<f64> = Spectrum::new();
-        s.compute(&g);
+        let mut buf = [0.0; FFT_LEN];
+        let s = Spectrum::compute(&g, &mut buf).unwrap();
         let primary = period_bin(288.0);
         let line = s
             .strongest(0, NYQUIST_BIN, |k| {
@@ -232,8 +206,8 @@ mod tests {
     #[test]
     fn drift_alone_leaves_no_gear_line() {
         let g = grid_of(|t| 0.01 * t, 4000.0);
-        let mut s: Spectrum<f64> = Spectrum::new();
-        s.compute(&g);
+        let mut buf = [0.0; FFT_LEN];
+        let s = Spectrum::compute(&g, &mut buf).unwrap();
         // What a 1 px tone over these cells would put in its peak bin.
         let n = g.len() as f64;
         let tone = (0.5 * 0.54 * n) * (0.5 * 0.54 * n);
