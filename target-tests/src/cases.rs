@@ -6,6 +6,7 @@ use crate::case;
 use crate::harness::Test;
 
 mod instr_counter;
+mod model_f32;
 mod scalar_f32;
 #[cfg(any(feature = "selfcheck-fail", feature = "selfcheck-hardfault"))]
 mod selfcheck;
@@ -22,6 +23,11 @@ pub static CASES: &[Test] = &[
     case!(scalar_f32::f32_matches_f64_sweep),
     case!(instr_counter::measures_delay_loop),
     case!(instr_counter::longer_loop_measures_more),
+    case!(model_f32::ldlt_known_solve),
+    case!(model_f32::fft_pure_tone),
+    case!(model_f32::spectrum_finds_the_period),
+    case!(model_f32::closed_loop_n1),
+    case!(model_f32::closed_loop_n2),
 ];
 
 /// Harness self-check: must print `1 passed, 2 failed` and exit 1.

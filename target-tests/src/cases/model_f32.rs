@@ -1,0 +1,260 @@
+//! The `f32` model on the Cortex-M4F: the LDLT solve, the FFT, the
+//! spectrum's period estimate, and short noise-free closed loops of
+//! `Guider<f32, 1>` and `Guider<f32, 2>` (in statics: about 55 KiB each).
+//!
+//! The simulated gear error, the applied sum and the scores are computed in
+//! `f64` (soft-float here) outside the guider.
+
+use crate::harness::{check, close_abs, TestResult};
+use core::cell::UnsafeCell;
+use core::f64::consts::PI;
+use core::mem::MaybeUninit;
+use core::sync::atomic::{AtomicBool, Ordering};
+use cortex_m_semihosting::hprintln;
+use mkgp_mount::fft::{power_spectrum, FFT_LEN};
+use mkgp_mount::grid::Grid;
+use mkgp_mount::guider::{Guider, GuiderConfig};
+use mkgp_mount::ldlt::{FactorError, Ldlt};
+use mkgp_mount::scalar::Scalar;
+use mkgp_mount::spectrum::{Spectrum, NYQUIST_BIN};
+
+fn sin64(x: f64) -> f64 {
+    <f64 as Scalar>::sin(x)
+}
+
+fn exp64(x: f64) -> f64 {
+    <f64 as Scalar>::exp(x)
+}
+
+fn abs(x: f64) -> f64 {
+    if x < 0.0 {
+        -x
+    } else {
+        x
+    }
+}
+
+/// Static storage for one value, handed out once: the guiders, the grid and
+/// the spectrum buffer are too large for the stack to hold comfortably.
+struct Slot<T> {
+    taken: AtomicBool,
+    value: UnsafeCell<MaybeUninit<T>>,
+}
+
+// SAFETY: the value is reachable only through the one `&mut` that `init`
+// hands out.
+unsafe impl<T> Sync for Slot<T> {}
+
+impl<T> Slot<T> {
+    const fn new() -> Self {
+        Slot {
+            taken: AtomicBool::new(false),
+            value: UnsafeCell::new(MaybeUninit::uninit()),
+        }
+    }
+
+    #[allow(clippy::mut_from_ref)]
+    fn init(&'static self, value: T) -> &'static mut T {
+        assert!(!self.taken.swap(true, Ordering::SeqCst), "Slot used twice");
+        // SAFETY: first and only use (checked above).
+        unsafe { (*self.value.get()).write(value) }
+    }
+}
+
+/// LDLT of a 6 x 6 Gram-like matrix (squared-exponential kernel on 5 s
+/// cells plus a noise diagonal): the solve recovers a known x from b = A x
+/// within 1e-4 of max |x|; an indefinite matrix is refused.
+pub fn ldlt_known_solve() -> TestResult {
+    let mut a = [[0.0f64; 6]; 6];
+    for (i, row) in a.iter_mut().enumerate() {
+        for (j, v) in row.iter_mut().enumerate() {
+            let d = (i as f64 - j as f64) * 5.0;
+            *v = 400.0 * exp64(-d * d / (2.0 * 30.0 * 30.0));
+        }
+        row[i] += 0.5 + i as f64 * 0.1;
+    }
+    let x = [1.0, -2.0, 0.5, 3.0, -1.0, 0.25];
+    let mut b = [0.0f32; 6];
+    for i in 0..6 {
+        let mut s = 0.0;
+        for j in 0..6 {
+            s += a[i][j] * x[j];
+        }
+        b[i] = s as f32;
+    }
+    let mut f: Ldlt<f32, 8, 36> = Ldlt::new();
+    f.set_dim(6);
+    for (i, row) in a.iter().enumerate() {
+        for (r, &v) in f.row_mut(i).iter_mut().zip(row) {
+            *r = v as f32;
+        }
+    }
+    check(f.factor().is_ok(), "factor refused an SPD matrix")?;
+    f.solve(&mut b);
+    let mut worst = 0.0;
+    for i in 0..6 {
+        worst = if abs(b[i] as f64 - x[i]) > worst {
+            abs(b[i] as f64 - x[i])
+        } else {
+            worst
+        };
+    }
+    hprintln!("    largest |x - x_known|: {:e}", worst);
+    close_abs("LDLT solve", worst, 0.0, 1e-4 * 3.0)?;
+
+    let mut g: Ldlt<f32, 2, 3> = Ldlt::new();
+    g.set_dim(2);
+    g.row_mut(0).copy_from_slice(&[1.0]);
+    g.row_mut(1).copy_from_slice(&[2.0, 1.0]);
+    check(
+        g.factor() == Err(FactorError::NotPositiveDefinite { row: 1 }),
+        "indefinite matrix not refused",
+    )
+}
+
+static FFT_BUF: Slot<[f32; FFT_LEN]> = Slot::new();
+
+/// A pure tone in bin 100 (cos, amplitude 1): all its power, (4096 / 2)^2,
+/// lands in bin 100, and every other bin holds less than 1e-6 of it.
+pub fn fft_pure_tone() -> TestResult {
+    const BIN: usize = 100;
+    let buf = FFT_BUF.init([0.0; FFT_LEN]);
+    for (n, x) in buf.iter_mut().enumerate() {
+        // Phase reduced exactly before the f32 cosine.
+        let m = (BIN * n) % FFT_LEN;
+        *x = Scalar::cos(2.0 * core::f32::consts::PI * m as f32 / FFT_LEN as f32);
+    }
+    power_spectrum(buf);
+    let mut peak_bin = 0;
+    for k in 0..=NYQUIST_BIN {
+        if buf[k] > buf[peak_bin] {
+            peak_bin = k;
+        }
+    }
+    let peak = buf[BIN] as f64;
+    let mut leak = 0.0f64;
+    for (k, &p) in buf.iter().enumerate().take(NYQUIST_BIN + 1) {
+        if k != BIN && p as f64 > leak {
+            leak = p as f64;
+        }
+    }
+    hprintln!(
+        "    peak bin {}, power {:e}, largest other bin {:e}",
+        peak_bin,
+        peak,
+        leak
+    );
+    check(peak_bin == BIN, "tone not in its bin")?;
+    let full = (FFT_LEN as f64 / 2.0) * (FFT_LEN as f64 / 2.0);
+    close_abs("tone power / (N/2)^2", peak / full, 1.0, 1e-4)?;
+    check(leak < 1e-6 * peak, "power leaked out of the tone's bin")
+}
+
+static GRID: Slot<Grid<f32>> = Slot::new();
+static SPECTRUM: Slot<Spectrum<f32>> = Slot::new();
+
+/// The spectrum of 8,000 s of 9 sin(2 pi t / 432) + 0.001 t on the grid
+/// (frames every 2 s) has its strongest line at 432 s (within 2 s).
+pub fn spectrum_finds_the_period() -> TestResult {
+    let grid = GRID.init(Grid::new());
+    let mut t = 0.0;
+    while t < 8000.0 {
+        grid.push(t, 9.0 * sin64(2.0 * PI * t / 432.0) + 0.001 * t, 1.0);
+        t += 2.0;
+    }
+    let spectrum = SPECTRUM.init(Spectrum::new());
+    check(spectrum.compute(grid), "spectrum not computed")?;
+    let line = spectrum.strongest(0, NYQUIST_BIN, |_| true);
+    let Some(line) = line else {
+        return Err("no line");
+    };
+    hprintln!("    strongest line: {} s", line.period_s);
+    close_abs("period", line.period_s, 432.0, 2.0)
+}
+
+/// Frames every 2 s, t = 0 .. 2998 s; scored from 1200 s.
+const LOOP_FRAMES: usize = 1500;
+const LOOP_DT: f64 = 2.0;
+const SCORE_FROM_S: f64 = 1200.0;
+
+/// Runs a noise-free closed loop (SNR 10): returns (residual RMS, open-loop
+/// RMS) over t >= [`SCORE_FROM_S`], or an error if a control is not finite.
+fn closed_loop<const N: usize>(
+    guider: &mut Guider<f32, N>,
+    gear: fn(f64) -> f64,
+) -> Result<(f64, f64), &'static str> {
+    let mut applied = 0.0f64;
+    let (mut sum_sq, mut open_sq, mut n) = (0.0f64, 0.0f64, 0usize);
+    for k in 0..LOOP_FRAMES {
+        let t = k as f64 * LOOP_DT;
+        let g = gear(t);
+        let residual = g - applied;
+        if t >= SCORE_FROM_S {
+            sum_sq += residual * residual;
+            open_sq += g * g;
+            n += 1;
+        }
+        let control = guider.frame(t, residual as f32, 10.0, LOOP_DT as f32);
+        if !control.is_finite() {
+            hprintln!("    control {} at {} s", control, t);
+            return Err("control not finite");
+        }
+        applied += control as f64;
+    }
+    let faults = guider.faults();
+    if faults != Default::default() {
+        hprintln!("    {:?}", faults);
+        return Err("faults counted");
+    }
+    Ok((
+        <f64 as Scalar>::sqrt(sum_sq / n as f64),
+        <f64 as Scalar>::sqrt(open_sq / n as f64),
+    ))
+}
+
+fn score(residual: f64, open: f64) -> TestResult {
+    hprintln!(
+        "    residual RMS {} px, open loop {} px (ratio {})",
+        residual,
+        open,
+        residual / open
+    );
+    check(
+        residual < 0.5 * open,
+        "residual not below half the open loop",
+    )
+}
+
+static GUIDER_1: Slot<Guider<f32, 1>> = Slot::new();
+static GUIDER_2: Slot<Guider<f32, 2>> = Slot::new();
+
+/// C1: one sinusoid and drift.
+fn c1(t: f64) -> f64 {
+    9.0 * sin64(2.0 * PI * t / 432.0) + 0.0008 * t
+}
+
+/// Two stages: C1 plus a 155 s stage (C5's).
+fn two_stage(t: f64) -> f64 {
+    c1(t) + 4.5 * sin64(2.0 * PI * t / 155.0)
+}
+
+/// `Guider<f32, 1>` on C1, noise-free, 1,500 frames.
+pub fn closed_loop_n1() -> TestResult {
+    let guider = GUIDER_1.init(Guider::new(GuiderConfig::default()));
+    let (residual, open) = closed_loop(guider, c1)?;
+    hprintln!("    period {} s", guider.period_s(0));
+    score(residual, open)
+}
+
+/// `Guider<f32, 2>` on the two-stage signal, noise-free, 1,500 frames.
+pub fn closed_loop_n2() -> TestResult {
+    let guider = GUIDER_2.init(Guider::new(GuiderConfig::default()));
+    let (residual, open) = closed_loop(guider, two_stage)?;
+    hprintln!(
+        "    periods {} s, {} s (gate {})",
+        guider.period_s(0),
+        guider.period_s(1),
+        guider.gate(1)
+    );
+    score(residual, open)
+}
