@@ -15,7 +15,7 @@
 use crate::discovery::Discovery;
 use crate::fft::FFT_LEN;
 use crate::gp::Gp;
-use crate::grid::{Grid, Push, CELL_S};
+use crate::grid::{Grid, Push, CELL_S, GRID_CELLS};
 use crate::kernel::Kernel;
 use crate::period::PeriodTracker;
 use crate::scalar::Scalar;
@@ -49,6 +49,11 @@ pub struct GuiderConfig<S> {
     pub periods_for_inference: f64,
     /// Worm periods of data before the period is estimated.
     pub periods_for_estimation: f64,
+    /// Inputs larger than this (px or arcsec) are no guide error the guider
+    /// could mean: such a frame is handled as one without a star and counted
+    /// in [`Faults::bad_input`], so that one absurd value cannot poison the
+    /// model for the length of its window.
+    pub max_input: S,
     /// The user's estimate of the period of stages 1, 2, 3 (seconds), if
     /// known: the search for that stage is then confined to a band around it.
     pub stage_seeds_s: [Option<f64>; MAX_SEEDED_STAGES],
@@ -67,6 +72,7 @@ impl<S: Scalar> Default for GuiderConfig<S> {
             compute_period: true,
             periods_for_inference: 2.0,
             periods_for_estimation: 2.0,
+            max_input: S::from_f64(100.0),
             stage_seeds_s: [None; MAX_SEEDED_STAGES],
         }
     }
@@ -79,11 +85,13 @@ pub struct Faults {
     /// Frame time not finite or earlier than the previous frame: the frame
     /// was ignored and the control is 0.
     pub bad_time: u32,
-    /// Input not finite: handled as a frame without a star.
+    /// Input not finite or beyond `max_input`: handled as a frame without a
+    /// star.
     pub bad_input: u32,
     /// The Gram matrix did not factor: the frame fell back to hysteresis.
     pub inference_failures: u32,
-    /// The frames jumped by more than the grid's window: learning restarted.
+    /// The frames jumped by more than the grid's window: the data was
+    /// dropped and learning started again (the periods are kept).
     pub grid_restarts: u32,
     /// A dither with a non-finite amount or a zero or non-finite rate.
     pub bad_dithers: u32,
@@ -250,7 +258,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
                 S::ZERO
             };
         }
-        if !input.is_finite() {
+        if !(input.abs() <= self.config.max_input) {
             self.faults.bad_input = self.faults.bad_input.saturating_add(1);
             return self.dark_frame(time_s, time_step);
         }
@@ -343,11 +351,16 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         }
     }
 
-    /// Refuse a frame time that is not finite or runs backwards.
+    /// Refuse a frame time that is not finite or runs backwards; after a
+    /// gap longer than the grid's window, start learning again from this
+    /// frame.
     fn accept_time(&mut self, time_s: f64) -> bool {
         let ok = time_s.is_finite() && (self.frames == 0 || time_s >= self.last_time);
         if !ok {
             self.faults.bad_time = self.faults.bad_time.saturating_add(1);
+        } else if self.frames > 0 && time_s - self.last_time > GRID_CELLS as f64 * CELL_S {
+            self.reset();
+            self.faults.grid_restarts = self.faults.grid_restarts.saturating_add(1);
         }
         ok
     }

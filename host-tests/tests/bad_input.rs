@@ -223,11 +223,10 @@ fn time_jumps<S: Scalar, const N: usize>() {
     let first = sim.step();
     assert!(first.abs() <= SANE_PX);
     assert_eq!(sim.faults().grid_restarts, 1);
-    // The first frame after the gap is learned at the midpoint of the gap,
-    // so the second frame, a window and a half later, restarts the grid
-    // again: one gap counts twice (see the report; harmless otherwise).
+    // The gap restarted learning from its first frame: the next frames
+    // continue the new data.
     sim.step();
-    assert_eq!(sim.faults().grid_restarts, 2);
+    assert_eq!(sim.faults().grid_restarts, 1);
     // Keeps guiding, and learns the gear error again.
     let max = sim.run_until(restart_at + 2400.0);
     assert!(max <= SANE_PX);
@@ -236,31 +235,25 @@ fn time_jumps<S: Scalar, const N: usize>() {
     assert_eq!(
         sim.faults(),
         Faults {
-            grid_restarts: 2,
+            grid_restarts: 1,
             ..Faults::default()
         }
     );
     // An absurd jump (the clock's precision is then coarser than a frame:
-    // every frame has the same time), with sane inputs. Its first frame
-    // fits the old cells around a centre 1e300 s away: the trend basis is
-    // degenerate, the fit fails (counted) and the frame falls back to the
-    // reactive term. The jump then restarts the grid (twice, as above).
+    // every frame has the same time), with sane inputs: counted once, and
+    // with no time passing no cell completes, so the guider stays reactive.
     for k in 0..50 {
         let t = 1e300 + k as f64 * DT;
         let y = S::from_f64(0.5 + 0.5 * (k as f64).sin());
         let c = sim.guider.frame(t, y, S::from_f64(SNR), S::from_f64(DT));
         let c = c.to_f64();
         assert!(c.abs() <= SANE_PX, "control {c} after a jump to 1e300 s");
-        if k == 0 {
-            assert_eq!(sim.faults().inference_failures, 1);
-            assert_eq!(sim.guider.blend_weight(), 0.0);
-        }
+        assert_eq!(sim.guider.blend_weight(), 0.0);
     }
     assert_eq!(
         sim.faults(),
         Faults {
-            grid_restarts: 4,
-            inference_failures: 1,
+            grid_restarts: 2,
             ..Faults::default()
         }
     );
@@ -354,95 +347,47 @@ fn grid_wraps<S: Scalar, const N: usize>() {
     assert_eq!(sim.faults(), Faults::default());
 }
 
-/// Huge but finite inputs (1e30 px): the control is finite (the reactive
-/// term answers in proportion, which is the defined outcome for a finite
-/// input), and once the inputs are sane again so are the controls. In `f32`
-/// the same holds at 1e38, next to the largest finite `f32`.
+/// Inputs beyond `max_input` (100 px by default), up to the edge of the
+/// scalar's range, are no guide error: each frame is handled as one without
+/// a star (counted in `bad_input`), so the model is not poisoned and the
+/// controls afterwards stay sane.
 fn huge_inputs<S: Scalar, const N: usize>() {
-    let mut sim = warm::<S, N>();
-    let gain = sim.guider.config().control_gain.to_f64();
-    for &x in &[1e30, -1e30, 1e30] {
-        let c = sim
-            .guider
-            .frame(sim.t, S::from_f64(x), S::from_f64(SNR), S::from_f64(DT));
-        // Not applied to the simulated mount: it would leave the sky.
-        let c = c.to_f64();
-        assert!(c.is_finite(), "input {x}: control {c}");
-        assert!(c.abs() <= 2.0 * gain * x.abs(), "input {x}: control {c}");
-        sim.t += DT;
-    }
-    // Finite controls afterwards (not sane ones: see
-    // `a_single_outlier_poisons_the_model` below). Not applied.
-    let mut max: f64 = 0.0;
-    for _ in 0..300 {
-        let y = S::from_f64(sim.measured());
-        let c = sim
-            .guider
-            .frame(sim.t, y, S::from_f64(SNR), S::from_f64(DT));
-        let c = c.to_f64();
-        assert!(
-            c.is_finite(),
-            "control {c} at {} s after 1e30 inputs",
-            sim.t
-        );
-        max = max.max(c.abs());
-        sim.t += DT;
-    }
-    println!("largest control in the 600 s after 1e30 px inputs: {max:.2e} px");
-    // A finite input is not a bad input, and nothing else went wrong.
-    assert_eq!(sim.faults(), Faults::default());
-
-    // Inputs at the edge of the scalar's range (3e38 in f32, 1e307 in
-    // f64): the controls stay finite, and the only fault that may be counted
-    // is failed fits (in f32 the cells overflow and every fit fails; the
-    // frames fall back to the reactive term).
     let edge = if S::from_f64(1e39).is_finite() {
         1e307
     } else {
         3e38
     };
-    let mut sim = warm::<S, N>();
-    for _ in 0..5 {
-        let c = sim
-            .guider
-            .frame(sim.t, S::from_f64(edge), S::from_f64(SNR), S::from_f64(DT));
-        assert!(c.to_f64().is_finite(), "input {edge:e}: control {c:?}");
-        sim.t += DT;
-    }
-    for _ in 0..300 {
-        let y = S::from_f64(sim.measured());
-        let c = sim
-            .guider
-            .frame(sim.t, y, S::from_f64(SNR), S::from_f64(DT));
-        assert!(
-            c.to_f64().is_finite(),
-            "control {c:?} after {edge:e} inputs"
-        );
-        sim.t += DT;
-    }
-    let f = sim.faults();
-    println!("faults after five {edge:e} px inputs: {f:?}");
-    // In f32 the cells overflow to infinity and every fit fails; in f64
-    // the fits still succeed (and predict garbage, as above).
-    if edge < 1e39 {
-        assert!(f.inference_failures > 0, "{f:?}");
-    }
-    assert_eq!(
-        f,
-        Faults {
-            inference_failures: f.inference_failures,
-            ..Faults::default()
+    for &x in &[1e30, -1e30, 1e4, edge] {
+        let mut sim = warm::<S, N>();
+        for _ in 0..5 {
+            let c = sim
+                .guider
+                .frame(sim.t, S::from_f64(x), S::from_f64(SNR), S::from_f64(DT));
+            let c = c.to_f64();
+            assert!(c.abs() <= SANE_PX, "input {x:e}: control {c}");
+            sim.t += DT;
         }
-    );
+        let mut max: f64 = 0.0;
+        for _ in 0..1000 {
+            max = max.max(sim.step().abs());
+        }
+        assert!(
+            max <= SANE_PX,
+            "largest control after {x:e} inputs: {max:e}"
+        );
+        assert_eq!(
+            sim.faults(),
+            Faults {
+                bad_input: 5,
+                ..Faults::default()
+            }
+        );
+    }
 }
 
-/// LIBRARY ISSUE (ignored until fixed): one absurd measurement poisons the
-/// model for the life of the grid (2.8 h). After a single 1e30 px input the
-/// controls on sane inputs reach ~1e28 px (f64 and f32, N = 1 and 2) for the
-/// whole window; a single 1e4 px input gives controls of up to ~300 px, a
-/// single 100 px input up to ~2 px. No fault is counted. An input far beyond
-/// any plausible guide error should be treated like a non-finite one (a dark
-/// frame, counted in `bad_input`).
+/// One absurd measurement once poisoned the model for the life of the grid
+/// (2.8 h): after a single 1e30 px input the controls on sane inputs reached
+/// ~1e28 px. It is now a frame without a star.
 fn single_outlier<S: Scalar, const N: usize>() {
     let mut sim = warm::<S, N>();
     let c = sim
@@ -458,13 +403,7 @@ fn single_outlier<S: Scalar, const N: usize>() {
         max <= SANE_PX,
         "largest control after one 1e30 px input: {max:e} px"
     );
-}
-
-#[test]
-#[ignore = "library issue: a single absurd input poisons the model (see single_outlier)"]
-fn a_single_outlier_poisons_the_model() {
-    single_outlier::<f64, 1>();
-    single_outlier::<f32, 1>();
+    assert_eq!(sim.faults().bad_input, 1);
 }
 
 macro_rules! for_each_variant {
@@ -499,4 +438,5 @@ for_each_variant!(
     dithers,
     grid_wraps,
     huge_inputs,
+    single_outlier,
 );
