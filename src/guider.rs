@@ -298,6 +298,63 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         self.finish_frame(timestamp, input.to_f64(), variance, control)
     }
 
+    /// Mount-side learning, for a caller that reconstructs the gear error
+    /// itself (the corrections it applied plus the error the guider still
+    /// reports) and wants the model's feed-forward rather than a control.
+    /// Records the observation and returns the predicted change of the gear
+    /// error from this frame to `time_s + time_step`, weighted by the blend
+    /// weight: 0 until the model has earned trust, and whenever its fit
+    /// fails. `gear_error: None` means nothing was measured this frame (the
+    /// guider was silent): the frame is kept with a variance that makes it
+    /// count for nothing, at the estimate `unmeasured_estimate`. Frames while
+    /// settling after [`dithered`](Self::dithered) are not learned either.
+    /// Use either this or [`frame`](Self::frame) on one guider, not both.
+    pub fn observe(
+        &mut self,
+        time_s: f64,
+        gear_error: Option<f64>,
+        unmeasured_estimate: f64,
+        snr: S,
+        time_step: S,
+    ) -> S {
+        if !self.accept_time(time_s) {
+            return S::ZERO;
+        }
+        let settling = self.dither_frames_left > 0;
+        if settling {
+            self.dither_frames_left -= 1;
+        }
+        let (gear, variance) = match gear_error {
+            Some(g) if !settling && g.is_finite() => (g, measurement_variance(snr.to_f64())),
+            Some(g) if !g.is_finite() => {
+                self.faults.bad_input = self.faults.bad_input.saturating_add(1);
+                (unmeasured_estimate, DARK_VARIANCE)
+            }
+            _ => (unmeasured_estimate, DARK_VARIANCE),
+        };
+        let dt = Self::sanitize_step(time_step);
+        let timestamp = self.timestamp(time_s);
+        self.last_prediction_end = Some(timestamp);
+        self.blend = 0.0;
+        let mut feed_forward = S::ZERO;
+        if self.frames >= WARM_UP_FRAMES {
+            let now = time_s - self.start_time;
+            let failed = self.update(now + 0.5 * dt, timestamp);
+            self.prediction = self.predict(now, dt);
+            if !failed {
+                self.blend = self.blend_weight_at(timestamp);
+                feed_forward = S::from_f64(self.blend) * self.prediction;
+            }
+        }
+        if !feed_forward.is_finite() {
+            feed_forward = S::ZERO;
+        }
+        self.learning_progress = self.progress_at(timestamp);
+        self.record(timestamp, gear, variance);
+        self.frames = self.frames.saturating_add(1);
+        feed_forward
+    }
+
     /// One guide frame without a star (clouds, a lost star): the model's
     /// prediction alone is applied once it has enough data.
     pub fn dark_frame(&mut self, time_s: f64, time_step: S) -> S {
@@ -384,10 +441,16 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         } else {
             S::ZERO
         };
-        match self
-            .grid
-            .push(timestamp, self.sum_control + measurement, variance)
-        {
+        self.record(timestamp, self.sum_control + measurement, variance);
+        self.sum_control += control.to_f64();
+        self.recent_controls = [control, self.recent_controls[0]];
+        self.frames = self.frames.saturating_add(1);
+        control
+    }
+
+    /// Add a frame's gear error to the grid.
+    fn record(&mut self, timestamp: f64, gear: f64, variance: f64) {
+        match self.grid.push(timestamp, gear, variance) {
             Push::Accepted { new_cells: 0 } | Push::Rejected => {}
             Push::Accepted { .. } => self.lines_stale = true,
             Push::Restarted => {
@@ -395,10 +458,6 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
                 self.faults.grid_restarts = self.faults.grid_restarts.saturating_add(1);
             }
         }
-        self.sum_control += control.to_f64();
-        self.recent_controls = [control, self.recent_controls[0]];
-        self.frames = self.frames.saturating_add(1);
-        control
     }
 
     /// Track the periods and fit the model around `centre` (s since start).
@@ -494,5 +553,50 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             return ramp;
         }
         0.5 * ramp + 0.5 * self.convergence()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn gear(t: f64) -> f64 {
+        9.0 * libm::sin(2.0 * core::f64::consts::PI * t / 432.0) + 0.0008 * t
+    }
+
+    #[test]
+    fn observe_predicts_the_gear_error_change() {
+        let mut g: Guider<f64, 1> = Guider::new(GuiderConfig::default());
+        let (mut sq_err, mut sq_true, mut n) = (0.0, 0.0, 0);
+        let mut t = 0.0;
+        while t < 6000.0 {
+            let ff = g.observe(t, Some(gear(t)), 0.0, 10.0, 2.0);
+            if t >= 2000.0 {
+                // From this frame's timestamp (the midpoint since the last
+                // frame) to the next frame.
+                let truth = gear(t + 2.0) - gear(t - 1.0);
+                sq_err += (ff - truth) * (ff - truth);
+                sq_true += truth * truth;
+                n += 1;
+            }
+            t += 2.0;
+        }
+        let (rms_err, rms_true) = ((sq_err / n as f64).sqrt(), (sq_true / n as f64).sqrt());
+        assert!(g.blend_weight() > 0.99);
+        // Measured: 0.016 px against a true change of 0.275 px RMS (5.7 %).
+        assert!(rms_err < 0.08 * rms_true, "{rms_err} vs {rms_true}");
+        assert!((g.period_s(0) - 432.0).abs() < 1.0, "{}", g.period_s(0));
+    }
+
+    #[test]
+    fn observe_without_measurements_predicts_nothing_new() {
+        let mut g: Guider<f64, 1> = Guider::new(GuiderConfig::default());
+        for k in 0..2000 {
+            let ff = g.observe(2.0 * k as f64, None, 0.0, 10.0, 2.0);
+            assert!(ff.abs() < 1e-6, "frame {k}: {ff}");
+        }
+        let ff = g.observe(4000.0, Some(f64::NAN), 0.0, 10.0, 2.0);
+        assert_eq!(ff, 0.0);
+        assert_eq!(g.faults().bad_input, 1);
     }
 }
