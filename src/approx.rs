@@ -278,6 +278,93 @@ fn pow2(k: i32) -> f32 {
     f32::from_bits(((k + 127) as u32) << 23)
 }
 
+// Kernel-specialised functions (see `Scalar::exp_nonpositive` and
+// `Scalar::sin2_scaled`): no range handling beyond what the kernel needs.
+
+/// `exp_nonpositive` returns `0` below this (`e^-87 = 1.6e-38`, just above
+/// the smallest normal `f32`), so every result is normal and the exponent can
+/// be added to the bits directly.
+const EXP_NP_MIN: f32 = -87.0;
+/// `EXP_NP_MIN.to_bits() - 0x8000_0000`: `x.to_bits() - 0x8000_0000`
+/// (wrapping) is at most this exactly for `x` in `[-87, -0]`.
+const EXP_NP_RANGE: u32 = 0x42AE_0000;
+// e^r = X0 + r (X1 + r (X2 + r (X3 + r (X4 + r X5)))) on |r| <= ln2/2 + 5e-4,
+// relative minimax fit (Remez in mpmath, coefficients rounded to f32):
+// fit error 7.6e-8.
+const X0: f32 = 1.000_000_1;
+const X1: f32 = 0.999_999_7;
+const X2: f32 = 0.499_988_88;
+const X3: f32 = 0.166_675_8;
+const X4: f32 = 0.041_916_095;
+const X5: f32 = 0.008_297_552;
+
+/// `e^x` for `x` in `[-87, 0]`, the kernel's arguments: relative error
+/// below 5e-7 there (measured: see the tests). Below `-87` (and for `-inf`)
+/// the result is `0`; for positive `x` and NaN it is [`exp`] (off the fast
+/// path).
+///
+/// `x = k ln2 + r` with `k` rounded by the `1.5 * 2^23` trick and the
+/// two-part `ln2` of [`exp`]; a degree-5 polynomial for `e^r`, `|r| <= ln2/2`;
+/// `k` is added to the exponent bits (the result is normal for `x >= -87`).
+#[inline(always)]
+pub fn exp_nonpositive(x: f32) -> f32 {
+    // One unsigned compare: -0.0 ..= -87.0 are the bit patterns
+    // 0x8000_0000 ..= 0xC2AE_0000; positive numbers, NaN and x < -87 are not.
+    if x.to_bits().wrapping_sub(0x8000_0000) > EXP_NP_RANGE {
+        return exp_nonpositive_outside(x);
+    }
+    // k = round(x log2 e) in -126 ..= 0: adding 1.5 * 2^23 leaves k in the
+    // low mantissa bits of t, whose bit pattern shifted left by 23 is
+    // exactly k << 23 (0x4B40_0000 << 23 wraps to 0). Cheaper on the target
+    // than a float-to-int conversion (which also needs a move back).
+    let t = x * LOG2_E + ROUND_MAGIC;
+    let kf = t - ROUND_MAGIC;
+    let r = (x - kf * LN2_HI) - kf * LN2_LO;
+    let p = X0 + r * (X1 + r * (X2 + r * (X3 + r * (X4 + r * X5))));
+    // p is in [0.70, 1.42]; k >= -126 keeps the biased exponent >= 1.
+    f32::from_bits(p.to_bits().wrapping_add(t.to_bits() << 23))
+}
+
+#[cold]
+#[inline(never)]
+fn exp_nonpositive_outside(x: f32) -> f32 {
+    if x < EXP_NP_MIN {
+        0.0
+    } else {
+        exp(x)
+    }
+}
+
+// sin²(pi r) = z (A1 + A2 z + A3 z^2 + A4 z^3 + A5 z^4 + A6 z^5), z = r^2,
+// |r| <= 1/2: minimax for the absolute error (Remez in mpmath, coefficients
+// rounded to f32): fit error 5.9e-9. (Squaring an odd polynomial for
+// sin(pi r) instead doubles the f32 rounding near sin² = 1.)
+const A1: f32 = 9.869_603;
+const A2: f32 = -32.469_58;
+const A3: f32 = 42.725_384;
+const A4: f32 = -30.085_953;
+const A5: f32 = 12.990_729;
+const A6: f32 = -3.272_943_7;
+
+/// `coeff * sin²(π d / P)` given `inv_period = 1/P`: the periodic part of
+/// the kernel's exponent. Absolute error of the `sin²` factor below 3e-7
+/// (measured: see the tests) for `|d / P| < 2^22`, beyond that the argument
+/// reduction is wrong; NaN or infinite `d / P` give NaN.
+///
+/// `sin²` has period 1 in `x = d / P`: `x` is reduced to `r = x - round(x)`
+/// in `[-1/2, 1/2]` exactly (rounding by adding and subtracting
+/// `1.5 * 2^23`), and `sin²(π r)` is a polynomial in `r²`. Computing `x = d/P`
+/// directly rather than `(π/P) d` then reducing modulo `π` costs no accuracy:
+/// both round the product once, and `r` is exact.
+#[inline(always)]
+pub fn sin2_scaled(d: f32, inv_period: f32, coeff: f32) -> f32 {
+    let x = d * inv_period;
+    let r = x - ((x + ROUND_MAGIC) - ROUND_MAGIC);
+    let z = r * r;
+    let q = A1 + z * (A2 + z * (A3 + z * (A4 + z * (A5 + z * A6))));
+    coeff * (z * q)
+}
+
 /// Square root, correctly rounded; negative inputs give NaN.
 #[inline]
 pub fn sqrt(x: f32) -> f32 {
@@ -466,6 +553,123 @@ mod tests {
                 "x = {x}"
             );
         }
+    }
+
+    #[test]
+    fn exp_nonpositive_accuracy() {
+        let mut worst = (0.0f64, 0.0f32);
+        let mut check = |x: f32| {
+            let want = libm::exp(x as f64);
+            let e = ((exp_nonpositive(x) as f64 - want) / want).abs();
+            if e > worst.0 {
+                worst = (e, x);
+            }
+        };
+        for x in grid(-87.0, 0.0, 8_000_000).chain(grid(-1.0, 0.0, 2_000_000)) {
+            check(x);
+        }
+        // every f32 in [-2, -0.25] (the reduction's k = -3 ..= 0 and the
+        // rounding boundaries at k ln2 + ln2/2), and around each boundary
+        let mut b = (-0.25f32).to_bits();
+        while b <= (-2.0f32).to_bits() {
+            check(f32::from_bits(b));
+            b += 1;
+        }
+        for k in 0..126 {
+            let mid = -((k as f64 + 0.5) * core::f64::consts::LN_2) as f32;
+            let mb = mid.to_bits();
+            for i in 0..2000u32 {
+                check(f32::from_bits(mb - 1000 + i));
+            }
+        }
+        println!(
+            "exp_nonpositive on [-87, 0]: max rel err {:.3e} at {}",
+            worst.0, worst.1
+        );
+        assert!(worst.0 <= 5e-7);
+    }
+
+    #[test]
+    fn exp_nonpositive_outside_range() {
+        assert!(exp_nonpositive(f32::NAN).is_nan());
+        assert!(exp_nonpositive(-f32::NAN).is_nan());
+        assert_eq!(exp_nonpositive(f32::NEG_INFINITY), 0.0);
+        assert_eq!(exp_nonpositive(-87.000_01), 0.0);
+        assert_eq!(exp_nonpositive(-1000.0), 0.0);
+        assert!(exp_nonpositive(-87.0) > 0.0);
+        assert_eq!(exp_nonpositive(0.0), 1.0);
+        assert!((exp_nonpositive(-0.0) - 1.0).abs() <= 2e-7);
+        // positive arguments: the general `exp`
+        for x in [1e-30f32, 0.5, 1.0, 10.0, 88.0, 89.0, f32::INFINITY] {
+            assert_eq!(exp_nonpositive(x).to_bits(), exp(x).to_bits());
+        }
+    }
+
+    /// `sin²(π x)` in `f64` for an `f32` product `x`.
+    fn sin2_pi(x: f64) -> f64 {
+        let s = libm::sin(core::f64::consts::PI * (x - libm::round(x)));
+        s * s
+    }
+
+    #[test]
+    fn sin2_scaled_polynomial() {
+        // The approximation itself: x = d exactly (1/P = 1), dense in [-3, 3]
+        // (every reduction r in [-1/2, 1/2] many times) and far out.
+        let mut worst = (0.0f64, 0.0f32);
+        let xs = grid(-3.0, 3.0, 6_000_000)
+            .chain(grid(1490.0, 1500.0, 1_000_000))
+            .chain(grid(-4.0e6, 4.0e6, 1_000_000));
+        for x in xs {
+            let e = (sin2_scaled(x, 1.0, 1.0) as f64 - sin2_pi(x as f64)).abs();
+            if e > worst.0 {
+                worst = (e, x);
+            }
+        }
+        println!(
+            "sin2_scaled: max abs err {:.3e} at x = {}",
+            worst.0, worst.1
+        );
+        assert!(worst.0 <= 3e-7);
+        for x in [0.0f32, 1.0, -1.0, 2.0, 1500.0, -12345.0] {
+            assert_eq!(sin2_scaled(x, 1.0, 1.0), 0.0);
+        }
+        assert!((sin2_scaled(0.5, 1.0, 1.0) - 1.0).abs() <= 2e-7);
+        assert!(sin2_scaled(f32::NAN, 1.0, 1.0).is_nan());
+        assert!(sin2_scaled(f32::INFINITY, 1.0, 1.0).is_nan());
+    }
+
+    #[test]
+    fn sin2_scaled_kernel_lags() {
+        // End to end for the kernel's inputs, d up to 1.5e4 s and P from 10
+        // to 1500 s, against f64 sin²(π d / P) with 1/P rounded to f32 once:
+        // what remains beyond the polynomial is the rounding of x = d/P
+        // (half an ulp of x, ~6e-8 relative), as for any f32 evaluation.
+        let mut worst_rel_x = 0.0f64;
+        for period in [10.0f64, 37.3, 110.0, 288.0, 432.0, 1000.0, 1500.0] {
+            let inv = (1.0 / period) as f32;
+            let pi_over_p = (core::f64::consts::PI / period) as f32;
+            let (mut worst, mut worst_sin) = (0.0f64, 0.0f64);
+            for d in grid(-1.5e4, 1.5e4, 600_000) {
+                let x = d as f64 / period;
+                // the general-purpose route, sin((π/P) d)², for comparison
+                let s = sin(pi_over_p * d) as f64;
+                worst_sin = worst_sin.max((s * s - sin2_pi(x)).abs());
+                let e = (sin2_scaled(d, inv, 1.0) as f64 - sin2_pi(x)).abs();
+                // the derivative of sin²(π x) is at most π
+                let bound = 3e-7 + core::f64::consts::PI * 1.2e-7 * x.abs();
+                assert!(e <= bound, "P = {period}, d = {d}: {e:.3e}");
+                worst = worst.max(e);
+                worst_rel_x = worst_rel_x.max(e / (1.0 + x.abs()));
+            }
+            println!(
+                "sin2_scaled, P = {period}: max abs err {worst:.3e} (sin((π/P) d)²: {worst_sin:.3e})"
+            );
+        }
+        println!("max abs err / (1 + |d/P|): {worst_rel_x:.3e}");
+        // the coefficient multiplies (coeff s) s
+        let c = -23.7f32;
+        let s = sin2_scaled(0.3, 1.0, 1.0);
+        assert!((sin2_scaled(0.3, 1.0, c) - c * s).abs() <= 1e-5);
     }
 
     #[test]

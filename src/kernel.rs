@@ -23,11 +23,24 @@ pub const LONG_AMPLITUDE: f64 = 20.0;
 pub const SHORT_LENGTH_SCALE_S: f64 = 25.0;
 pub const SHORT_AMPLITUDE: f64 = 10.0;
 
+/// Exponent below which [`Kernel::full`] drops the short SE.
+///
+/// Why that is exact in `f64`: with `a_L = -d²/(2 ℓ_L²)` and
+/// `a_S = -d²/(2 ℓ_S²)` (ℓ_L = 700 s, ℓ_S = 25 s), the short term over the
+/// long SE term is `(σ_S²/σ_L²) e^(a_S - a_L) = 0.25 e^(a_S (1 - ℓ_S²/ℓ_L²))`,
+/// below `0.25 e^-49.93 = 5e-23` when `a_S < -50`. Every other term of the
+/// projection is `>= 0`, so the short term is below `2^-54` (5.6e-17) of the
+/// sum, less than half an ulp: the rounded sum is the projection itself.
+/// This holds while the long SE is normal, `d < 2.6e4 s`; from `d > 965 s`
+/// on, libm's `exp(a_S)` is `0` anyway. (In `f32` the term is equally far
+/// below rounding.)
+pub const SHORT_CUTOFF: f64 = -50.0;
+
 /// One periodic stage, pre-computed for evaluation.
 #[derive(Clone, Copy, Debug)]
 struct StageTerm<S> {
-    /// π / P_s
-    pi_over_period: S,
+    /// `S::sin2_factor(P_s)`: π / P_s in `f64`, 1 / P_s in `f32`.
+    phase_factor: S,
     /// Signal variance: amplitude² (times the evidence gate for s > 0).
     variance: S,
     /// -2 / ℓ², ℓ the standard-form length scale.
@@ -68,7 +81,7 @@ impl<S: Scalar, const N: usize> Kernel<S, N> {
             };
             let ls = standard_length_scale(natural_ls, period);
             StageTerm {
-                pi_over_period: S::from_f64(core::f64::consts::PI / period),
+                phase_factor: S::sin2_factor(period),
                 variance: S::from_f64(gate * PERIODIC_AMPLITUDE * PERIODIC_AMPLITUDE),
                 sin2_coeff: S::from_f64(-2.0 / (ls * ls)),
                 envelope_coeff: S::from_f64(envelope),
@@ -84,21 +97,35 @@ impl<S: Scalar, const N: usize> Kernel<S, N> {
     }
 
     /// Projection kernel: long SE + every stage.
+    #[inline(always)]
     pub fn projection(&self, d: S) -> S {
         let d2 = d * d;
-        let mut k = self.long_variance * (self.long_coeff * d2).exp();
+        let mut k = self.long_variance * (self.long_coeff * d2).exp_nonpositive();
         for st in &self.stages {
             if st.variance > S::ZERO {
-                let s = (st.pi_over_period * d).sin();
-                k += st.variance * (st.sin2_coeff * s * s + st.envelope_coeff * d2).exp();
+                let periodic = d.sin2_scaled(st.phase_factor, st.sin2_coeff);
+                k += st.variance * (periodic + st.envelope_coeff * d2).exp_nonpositive();
             }
         }
         k
     }
 
     /// Full kernel used to fit and to choose the subset: projection + short SE.
+    ///
+    /// The short SE is skipped where its exponent is below
+    /// [`SHORT_CUTOFF`]: it is then less than 100 e^-50 = 2e-20, and (its
+    /// length scale being the shortest) less than 2^-54 of the long SE
+    /// term alone, so adding it cannot change the sum's `f64` rounding (see
+    /// the bound at [`SHORT_CUTOFF`]). NaN lags still propagate.
+    #[inline]
     pub fn full(&self, d: S) -> S {
-        self.projection(d) + self.short_variance * (self.short_coeff * d * d).exp()
+        let k = self.projection(d);
+        let short = self.short_coeff * d * d;
+        if short < S::from_f64(SHORT_CUTOFF) {
+            k
+        } else {
+            k + self.short_variance * short.exp_nonpositive()
+        }
     }
 }
 
@@ -116,6 +143,39 @@ mod tests {
             assert_eq!(k.full(d), k.full(-d));
             assert!(k.full(d) < k0);
             assert!(k.projection(d) <= k.full(d));
+        }
+    }
+
+    /// The f64 kernel is bit for bit the formula it had before the
+    /// specialised `exp_nonpositive` / `sin2_scaled` and the short-SE cutoff.
+    #[test]
+    fn f64_is_the_reference_formula_bit_for_bit() {
+        fn reference<const N: usize>(k: &Kernel<f64, N>, periods: &[f64; N], d: f64) -> f64 {
+            let d2 = d * d;
+            let mut v = k.long_variance * libm::exp(k.long_coeff * d2);
+            for (st, p) in k.stages.iter().zip(periods) {
+                if st.variance > 0.0 {
+                    let s = libm::sin(core::f64::consts::PI / p * d);
+                    v += st.variance * libm::exp(st.sin2_coeff * s * s + st.envelope_coeff * d2);
+                }
+            }
+            v + k.short_variance * libm::exp(k.short_coeff * d * d)
+        }
+        let cases: [([f64; 2], [f64; 2]); 4] = [
+            ([432.0, 155.0], [1.0, 0.6]),
+            ([288.0, 110.0], [1.0, 1.0]),
+            ([600.0, 37.5], [1.0, 0.0]),
+            ([12.0, 1500.0], [1.0, 0.3]),
+        ];
+        for (periods, gates) in cases {
+            let k: Kernel<f64, 2> = Kernel::new(&periods, &gates);
+            // grid lags (multiples of 5 s) and fractional ones, to 3e4 s
+            for i in -6000..=6000 {
+                for d in [5.0 * i as f64, 5.0 * i as f64 + 0.37, 0.013 * i as f64] {
+                    let want = reference(&k, &periods, d);
+                    assert_eq!(k.full(d).to_bits(), want.to_bits(), "d = {d}");
+                }
+            }
         }
     }
 

@@ -35,6 +35,21 @@ pub trait Scalar:
     fn cos(self) -> Self;
     fn exp(self) -> Self;
     fn sqrt(self) -> Self;
+    /// `e^self` for the kernel's exponents, which are `<= 0`. `f64`: exactly
+    /// [`exp`](Self::exp). `f32`: [`crate::approx::exp_nonpositive`], a
+    /// lean version for `[-87, 0]` (relative error < 5e-7) that returns `0`
+    /// below `-87`; positive arguments and NaN take the general `exp`.
+    fn exp_nonpositive(self) -> Self;
+    /// What [`sin2_scaled`](Self::sin2_scaled) multiplies the lag by for the
+    /// period `period` (s): `π / P` for `f64`, `1 / P` for `f32` (whose
+    /// reduction works in periods).
+    fn sin2_factor(period: f64) -> Self;
+    /// `coeff * sin²(π self / P)` with `factor = Self::sin2_factor(P)`: the
+    /// periodic part of the kernel's exponent. `f64`: `s = sin(factor *
+    /// self)`, then `coeff * s * s`, in that order. `f32`:
+    /// [`crate::approx::sin2_scaled`] (absolute error of `sin²` < 3e-7 for
+    /// `|self / P| < 2^22`).
+    fn sin2_scaled(self, factor: Self, coeff: Self) -> Self;
     fn abs(self) -> Self {
         if self < Self::ZERO {
             -self
@@ -94,6 +109,16 @@ impl Scalar for f64 {
     fn sqrt(self) -> Self {
         libm::sqrt(self)
     }
+    fn exp_nonpositive(self) -> Self {
+        libm::exp(self)
+    }
+    fn sin2_factor(period: f64) -> Self {
+        core::f64::consts::PI / period
+    }
+    fn sin2_scaled(self, factor: Self, coeff: Self) -> Self {
+        let s = libm::sin(factor * self);
+        coeff * s * s
+    }
     fn is_finite(self) -> bool {
         f64::is_finite(self)
     }
@@ -121,6 +146,17 @@ impl Scalar for f32 {
     }
     fn sqrt(self) -> Self {
         crate::approx::sqrt(self)
+    }
+    #[inline(always)]
+    fn exp_nonpositive(self) -> Self {
+        crate::approx::exp_nonpositive(self)
+    }
+    fn sin2_factor(period: f64) -> Self {
+        (1.0 / period) as f32
+    }
+    #[inline(always)]
+    fn sin2_scaled(self, factor: Self, coeff: Self) -> Self {
+        crate::approx::sin2_scaled(self, factor, coeff)
     }
     fn is_finite(self) -> bool {
         f32::is_finite(self)
