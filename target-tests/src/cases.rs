@@ -6,6 +6,7 @@ use crate::case;
 use crate::harness::Test;
 
 mod instr_counter;
+mod kernel_f32;
 mod model_f32;
 mod scalar_f32;
 #[cfg(any(feature = "selfcheck-fail", feature = "selfcheck-hardfault"))]
@@ -21,6 +22,9 @@ pub static CASES: &[Test] = &[
     case!(scalar_f32::exp_known_points),
     case!(scalar_f32::sqrt_known_points),
     case!(scalar_f32::f32_matches_f64_sweep),
+    case!(kernel_f32::exp_nonpositive_points),
+    case!(kernel_f32::sin2_scaled_points),
+    case!(kernel_f32::kernel_f32_matches_f64),
     case!(instr_counter::measures_delay_loop),
     case!(instr_counter::longer_loop_measures_more),
     case!(model_f32::ldlt_known_solve),
