@@ -57,32 +57,63 @@ impl<S: Scalar, const CAP: usize, const TRI: usize> Ldlt<S, CAP, TRI> {
     }
 
     /// Factor in place: afterwards row `i` holds `L[i][0..i]` and `D[i]`.
+    ///
+    /// Row by row: first `w_j = L_ij D_j = A_ij - Σ_{k<j} w_k L_jk` for
+    /// `j < i`, then `L_ij = w_j / D_j` and `D_i = A_ii - Σ_j w_j L_ij`.
+    /// Rows are taken in pairs, so that each row `j` of `L` is read once for
+    /// both: the dot products are most of the cost, and this saves a third
+    /// of their loads.
     pub fn factor(&mut self) -> Result<(), FactorError> {
         let n = self.n;
-        for i in 0..n {
+        let mut i = 0;
+        while i < n {
             let ri = row_start(i);
-            // First pass: w_j = L_ij D_j = A_ij - sum_{k<j} w_k L_jk.
-            for j in 0..i {
-                let rj = row_start(j);
-                let (head, tail) = self.a.split_at_mut(ri);
-                let dot = dot(&tail[..j], &head[rj..rj + j]);
-                tail[j] -= dot;
+            if i + 1 < n {
+                let ri1 = row_start(i + 1);
+                for j in 0..i {
+                    let rj = row_start(j);
+                    let (head, tail) = self.a.split_at_mut(ri);
+                    let (row_i, row_i1) = tail.split_at_mut(ri1 - ri);
+                    let (d0, d1) = dot2(&row_i[..j], &row_i1[..j], &head[rj..rj + j]);
+                    row_i[j] -= d0;
+                    row_i1[j] -= d1;
+                }
+                self.finish_row(i)?;
+                let (head, tail) = self.a.split_at_mut(ri1);
+                let d = dot(&tail[..i], &head[ri..ri + i]);
+                tail[i] -= d;
+                self.finish_row(i + 1)?;
+                i += 2;
+            } else {
+                for j in 0..i {
+                    let rj = row_start(j);
+                    let (head, tail) = self.a.split_at_mut(ri);
+                    let d = dot(&tail[..j], &head[rj..rj + j]);
+                    tail[j] -= d;
+                }
+                self.finish_row(i)?;
+                i += 1;
             }
-            // Second pass: L_ij = w_j / D_j and D_i = A_ii - sum_j w_j L_ij.
-            let mut d = self.a[ri + i];
-            for j in 0..i {
-                let dj = self.a[row_start(j) + j];
-                let w = self.a[ri + j];
-                let l = w / dj;
-                d -= l * w;
-                self.a[ri + j] = l;
-            }
-            // `!(d > 0)` also catches NaN.
-            if !(d > S::ZERO) || !d.is_finite() {
-                return Err(FactorError::NotPositiveDefinite { row: i });
-            }
-            self.a[ri + i] = d;
         }
+        Ok(())
+    }
+
+    /// Turn row `i`'s `w_j` into `L_ij` and compute `D_i`.
+    fn finish_row(&mut self, i: usize) -> Result<(), FactorError> {
+        let ri = row_start(i);
+        let mut d = self.a[ri + i];
+        for j in 0..i {
+            let dj = self.a[row_start(j) + j];
+            let w = self.a[ri + j];
+            let l = w / dj;
+            d -= l * w;
+            self.a[ri + j] = l;
+        }
+        // `!(d > 0)` also catches NaN.
+        if !(d > S::ZERO) || !d.is_finite() {
+            return Err(FactorError::NotPositiveDefinite { row: i });
+        }
+        self.a[ri + i] = d;
         Ok(())
     }
 
@@ -114,6 +145,26 @@ impl<S: Scalar, const CAP: usize, const TRI: usize> Default for Ldlt<S, CAP, TRI
     fn default() -> Self {
         Self::new()
     }
+}
+
+/// Two dot products sharing their second operand: `(a·c, b·c)`.
+fn dot2<S: Scalar>(a: &[S], b: &[S], c: &[S]) -> (S, S) {
+    let n = a.len().min(b.len()).min(c.len());
+    let (a, b, c) = (&a[..n], &b[..n], &c[..n]);
+    let mut acc = [S::ZERO; 4];
+    let pairs = n / 2;
+    for k in 0..pairs {
+        let (k0, k1) = (2 * k, 2 * k + 1);
+        acc[0] += a[k0] * c[k0];
+        acc[1] += b[k0] * c[k0];
+        acc[2] += a[k1] * c[k1];
+        acc[3] += b[k1] * c[k1];
+    }
+    if n % 2 == 1 {
+        acc[0] += a[n - 1] * c[n - 1];
+        acc[1] += b[n - 1] * c[n - 1];
+    }
+    (acc[0] + acc[2], acc[1] + acc[3])
 }
 
 /// Dot product with four partial sums: the factorisation spends most of
@@ -198,6 +249,40 @@ mod tests {
                 (x[i] - r[i]).abs() < 1e-9 * r[i].abs().max(1.0),
                 "{x:?} {r:?}"
             );
+        }
+    }
+
+    #[test]
+    fn pairs_and_a_last_single_row_factor_alike() {
+        // Odd and even dimensions exercise the paired rows and the single
+        // last row: L D Lᵀ must give back the matrix.
+        for n in [1usize, 2, 5, 6] {
+            let m = spd();
+            let mut f: Ldlt<f64, 8, 36> = Ldlt::new();
+            f.set_dim(n);
+            for i in 0..n {
+                f.row_mut(i).copy_from_slice(&m[i][..=i]);
+            }
+            f.factor().unwrap();
+            let l = |i: usize, j: usize| {
+                if i == j {
+                    1.0
+                } else if j < i {
+                    f.a[row_start(i) + j]
+                } else {
+                    0.0
+                }
+            };
+            let d = |k: usize| f.a[row_start(k) + k];
+            for i in 0..n {
+                for j in 0..=i {
+                    let back: f64 = (0..n).map(|k| l(i, k) * d(k) * l(j, k)).sum();
+                    assert!(
+                        (back - m[i][j]).abs() < 1e-9 * m[i][j].abs().max(1.0),
+                        "n {n} ({i},{j})"
+                    );
+                }
+            }
         }
     }
 
