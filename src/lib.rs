@@ -13,6 +13,7 @@ pub mod grid;
 pub mod guider;
 pub mod kernel;
 pub mod ldlt;
+pub mod mount;
 pub mod period;
 pub mod scalar;
 pub mod spectrum;
