@@ -17,3 +17,4 @@ pub mod mount;
 pub mod period;
 pub mod scalar;
 pub mod spectrum;
+pub mod stepgen;
