@@ -7,6 +7,18 @@
 //!   [`take_board!`] macro that moves those pins out of the `Peripherals`.
 //! - [`clocks`]: system clock configuration per chip; [`clocks::init`] is the
 //!   first call of the firmware and returns the `Peripherals`.
+//! - [`st4`]: the ST4 guide port's four inputs on EXTI, each edge
+//!   timestamped in its interrupt and queued for one task.
+//! - [`stepper`]: STEP/DIR/ENABLE of each axis and the step tick timer.
+//!
+//! This crate knows the hardware only; what edges mean and how many steps to
+//! make is the `mkgp-mount` library's business, glued together in the
+//! firmware's `main.rs` (the firmware depends on this crate, so this crate
+//! cannot depend back on the library without a package cycle).
+//!
+//! Interrupt priorities (NVIC, lower number = more urgent): step tick `P0`;
+//! ST4 EXTI and embassy's time driver (TIM5) `P1`; the firmware's
+//! high-priority executor `P2`; thread mode below all of them.
 #![no_std]
 
 #[cfg(not(any(
@@ -25,6 +37,8 @@ compile_error!("mount-hal: select only one chip feature");
 
 pub mod board;
 pub mod clocks;
+pub mod st4;
+pub mod stepper;
 
 /// Re-exported so that users of the board types need not name the version.
 pub use embassy_stm32;

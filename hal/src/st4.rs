@@ -1,0 +1,215 @@
+//! The ST4 autoguider port: four active-low inputs, each edge timestamped.
+//!
+//! The inputs use the MCU's pull-ups (the camera's opto-couplers or
+//! open-collector outputs pull a line to ground for the length of a guide
+//! pulse) and interrupt on both edges through EXTI. The interrupt handler
+//! (below, on `EXTI9_5` and `EXTI15_10`, the vectors of every board's ST4
+//! lines) stamps the time with `embassy_time::Instant::now()` (1 µs ticks)
+//! *in the interrupt*, so the timestamp does not depend on when a task gets
+//! to run, and pushes a [`RawEdge`] into a queue that one task drains with
+//! [`St4Edges::next`].
+//!
+//! The handler tracks levels rather than trusting edge flags: it clears the
+//! pending flags first, then reads the four lines and queues an edge for each
+//! line whose level differs from the last one it reported. An edge that
+//! arrives while it runs pends the interrupt again, so the final level of
+//! every line is always reported; a pulse shorter than the interrupt latency
+//! (a few µs) can be missed entirely, which is harmless since it would be
+//! discarded as a glitch anyway.
+//!
+//! What the edges mean (debounce, pulses, both lines of an axis at once, the
+//! cap) is decided by the library's `mkgp_mount::st4::St4`, which the
+//! firmware feeds with these edges. This crate does not depend on the
+//! library: the firmware package depends on this one, and a dependency back
+//! would be a package cycle, so the mapping from [`St4Line`] to the library's
+//! `Line` lives in the firmware's `main.rs`.
+//!
+//! Interrupt priority: both EXTI vectors run at [`EXTI_PRIORITY`] (`P1`),
+//! below the step timer (`P0`) and above the high-priority executor.
+//! The handlers are this crate's: do not bind embassy's EXTI handler to
+//! `EXTI9_5` / `EXTI15_10`, and do not use async `ExtiInput`s on EXTI lines
+//! 5-15 alongside this module.
+
+use core::cell::RefCell;
+use core::sync::atomic::{AtomicU32, Ordering};
+
+use embassy_stm32::exti::{ExtiInput, TriggerEdge};
+use embassy_stm32::gpio::Pull;
+use embassy_stm32::interrupt;
+use embassy_stm32::interrupt::{InterruptExt, Priority};
+use embassy_stm32::mode::Blocking;
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::blocking_mutex::Mutex;
+use embassy_sync::channel::Channel;
+use embassy_time::Instant;
+
+use crate::board::St4Pins;
+
+/// NVIC priority of the ST4 EXTI interrupts.
+pub const EXTI_PRIORITY: Priority = Priority::P1;
+
+/// Edges the queue holds before the consumer must run. An ST4 line changes a
+/// few times per guide cycle; 32 covers a burst of contact bounce.
+pub const QUEUE_LEN: usize = 32;
+
+/// One of the four ST4 lines, in the order of the port's signals.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
+pub enum St4Line {
+    /// RA+ (west): RA faster than sidereal.
+    RaPlus = 0,
+    /// RA- (east): RA slower than sidereal.
+    RaMinus = 1,
+    /// Dec+ (north).
+    DecPlus = 2,
+    /// Dec- (south).
+    DecMinus = 3,
+}
+
+impl St4Line {
+    /// The four lines, indexed as in [`St4Edges::levels`].
+    pub const ALL: [St4Line; 4] = [
+        St4Line::RaPlus,
+        St4Line::RaMinus,
+        St4Line::DecPlus,
+        St4Line::DecMinus,
+    ];
+}
+
+/// A level change of one line: `asserted` is the new level (true = pulled
+/// low by the camera), `at_us` the embassy-time instant of the interrupt in
+/// microseconds since boot.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
+pub struct RawEdge {
+    pub line: St4Line,
+    pub asserted: bool,
+    pub at_us: u64,
+}
+
+struct Inputs {
+    lines: [ExtiInput<'static, Blocking>; 4],
+    /// The level last reported per line (true = asserted).
+    asserted: [bool; 4],
+}
+
+static INPUTS: Mutex<CriticalSectionRawMutex, RefCell<Option<Inputs>>> =
+    Mutex::new(RefCell::new(None));
+static EDGES: Channel<CriticalSectionRawMutex, RawEdge, QUEUE_LEN> = Channel::new();
+/// Edges lost because the queue was full.
+static DROPPED: AtomicU32 = AtomicU32::new(0);
+/// Bit i set: line i is asserted (as last seen by the interrupt).
+static LEVELS: AtomicU32 = AtomicU32::new(0);
+
+/// The consumer side of the edge queue; [`start`] returns the only one.
+pub struct St4Edges {
+    _private: (),
+}
+
+impl St4Edges {
+    /// The next edge, in the order they occurred.
+    pub async fn next(&mut self) -> RawEdge {
+        EDGES.receive().await
+    }
+
+    /// The next edge if one is queued.
+    pub fn try_next(&mut self) -> Option<RawEdge> {
+        EDGES.try_receive().ok()
+    }
+
+    /// Edges lost to a full queue since start (an input storm). After a loss
+    /// the consumer should resynchronise with [`levels`](Self::levels).
+    pub fn dropped(&self) -> u32 {
+        DROPPED.load(Ordering::Relaxed)
+    }
+
+    /// The level of each line as last seen by the interrupt handler, indexed
+    /// like [`St4Line::ALL`] (true = asserted).
+    pub fn levels(&self) -> [bool; 4] {
+        let bits = LEVELS.load(Ordering::Relaxed);
+        [bits & 1 != 0, bits & 2 != 0, bits & 4 != 0, bits & 8 != 0]
+    }
+}
+
+/// Configures the four ST4 inputs (pull-up, EXTI on both edges), sets the
+/// EXTI interrupt priority and starts reporting edges. Lines already asserted
+/// at start are reported as edges at the start time. Call once.
+pub fn start(pins: St4Pins) -> St4Edges {
+    interrupt::EXTI9_5.set_priority(EXTI_PRIORITY);
+    interrupt::EXTI15_10.set_priority(EXTI_PRIORITY);
+    // Built and stored with interrupts masked: an edge during set-up finds
+    // the inputs in place (an interrupt that found none could not clear its
+    // flag and would fire forever).
+    critical_section::with(|cs| {
+        let lines = [
+            ExtiInput::new_blocking(pins.ra_plus, pins.ra_plus_exti, Pull::Up, TriggerEdge::Any),
+            ExtiInput::new_blocking(
+                pins.ra_minus,
+                pins.ra_minus_exti,
+                Pull::Up,
+                TriggerEdge::Any,
+            ),
+            ExtiInput::new_blocking(
+                pins.dec_plus,
+                pins.dec_plus_exti,
+                Pull::Up,
+                TriggerEdge::Any,
+            ),
+            ExtiInput::new_blocking(
+                pins.dec_minus,
+                pins.dec_minus_exti,
+                Pull::Up,
+                TriggerEdge::Any,
+            ),
+        ];
+        INPUTS.borrow(cs).replace(Some(Inputs {
+            lines,
+            asserted: [false; 4],
+        }));
+    });
+    // embassy-stm32's init enabled every EXTI vector in the NVIC already; the
+    // first scan reports the lines asserted now.
+    on_exti();
+    St4Edges { _private: () }
+}
+
+/// The shared body of both EXTI handlers: clear, then compare levels.
+fn on_exti() {
+    let at_us = Instant::now().as_micros();
+    critical_section::with(|cs| {
+        let mut inputs = INPUTS.borrow(cs).borrow_mut();
+        let Some(inputs) = inputs.as_mut() else {
+            return;
+        };
+        for line in inputs.lines.iter_mut() {
+            line.clear_pending();
+        }
+        let mut bits = 0;
+        for (i, line) in inputs.lines.iter().enumerate() {
+            let asserted = line.is_low();
+            if asserted {
+                bits |= 1 << i;
+            }
+            if asserted != inputs.asserted[i] {
+                inputs.asserted[i] = asserted;
+                let edge = RawEdge {
+                    line: St4Line::ALL[i],
+                    asserted,
+                    at_us,
+                };
+                if EDGES.try_send(edge).is_err() {
+                    DROPPED.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+        }
+        LEVELS.store(bits, Ordering::Relaxed);
+    });
+}
+
+#[interrupt]
+fn EXTI9_5() {
+    on_exti();
+}
+
+#[interrupt]
+fn EXTI15_10() {
+    on_exti();
+}
