@@ -17,4 +17,5 @@ pub mod mount;
 pub mod period;
 pub mod scalar;
 pub mod spectrum;
+pub mod st4;
 pub mod stepgen;

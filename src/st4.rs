@@ -1,0 +1,928 @@
+//! ST4 input logic: what the raw edges of the four guide lines mean.
+//!
+//! The hal timestamps every edge of the four lines (RA+, RA-, Dec+, Dec-;
+//! active low, so "asserted" is the low level) and feeds it to
+//! [`St4::edge`]; it calls [`St4::poll`] until `None` after every edge and
+//! whenever [`St4::next_deadline_us`] comes due. Out come [`St4Event`]s:
+//! the start and the end of each axis' guide pulse, with the times of the
+//! edges that made them.
+//!
+//! **Debounce, per line.** A level change is confirmed only when the line
+//! keeps its new level for `glitch_us`; a change undone sooner (an
+//! assert-release pair, or a release-assert dropout inside a pulse) is a
+//! glitch: counted in [`St4Counters::glitches`] and otherwise ignored. Contact
+//! bounce is thus a few glitches and then a clean edge. A confirmed edge
+//! takes effect at its own time (the pulse starts at the assert edge's time
+//! and ends at the release edge's time), so the debounce delays the events
+//! by `glitch_us` but does not shorten or lengthen the pulses.
+//!
+//! **Pulses, per axis.** A confirmed assert on an idle axis starts a pulse
+//! ([`St4Event::PulseStart`]); the confirmed release of that line ends it
+//! ([`St4Event::PulseEnd`]).
+//! - *Both lines* of an axis asserted (confirmed): the axis' pulse ends at
+//!   the time of the second line's edge, and no pulse is accepted on the
+//!   axis until both lines are released. Counted once per such episode in
+//!   `both_lines`. (A stuck line counts as asserted.)
+//! - *Cap*: a pulse still asserted `pulse_cap_us` after its start is cut:
+//!   `PulseEnd` at start + cap, counted in `capped`. A pulse of exactly the
+//!   cap ends normally. The line, still asserted, is then *stuck*: counted
+//!   once in `stuck` and ignored until it is released (its release produces
+//!   no event). Every cut leaves its line stuck, so `capped` and `stuck`
+//!   move together; `stuck` is the number of lines found still asserted at
+//!   the cap, `capped` the number of pulses cut.
+//!
+//! **Time.** Timestamps are `u64` microseconds (embassy-time's 1 MHz tick).
+//! An edge older than the previous edge is out of order: ignored and counted
+//! in `out_of_order`. An edge older than the latest `poll` time but not
+//! older than the previous edge (an edge that waited in a channel while the
+//! task polled) takes effect at that poll time, so that nothing already
+//! decided changes (its events are late by the delivery delay). A `poll`
+//! time older than the latest time seen is harmless: it advances nothing.
+//! An edge that repeats the line's current raw level (an edge in between was
+//! missed) is ignored. An edge at the very time a cut is due comes first
+//! (a pulse of exactly the cap ends normally) unless a poll at that time
+//! came before it.
+//!
+//! **Events** wait in a fixed ring of [`ST4_QUEUE_LEN`] (16) events, 256
+//! bytes. When it is full, the oldest event is dropped and counted in
+//! `dropped`; nothing panics. Poll after every edge and nothing is ever
+//! dropped: one `edge` or `poll` makes at most a few events. Per axis the
+//! events alternate `PulseStart`, `PulseEnd` (unless dropped) and their
+//! times never decrease; between the two axes the order of the events
+//! follows the time at which they were confirmed.
+//!
+//! RAM: `size_of::<St4>()` is 424 bytes (the queue 272, 4 lines x 16,
+//! 2 axes x 16, counters 24, times 32).
+
+/// A mount axis.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Axis {
+    Ra,
+    Dec,
+}
+
+/// The direction of a guide pulse on its axis.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Direction {
+    Plus,
+    Minus,
+}
+
+/// The four lines, active low. RA+ = move west = RA axis faster than
+/// sidereal; RA- = slower; Dec+ = north.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Line {
+    RaPlus,
+    RaMinus,
+    DecPlus,
+    DecMinus,
+}
+
+impl Line {
+    /// The axis the line guides.
+    pub fn axis(self) -> Axis {
+        match self {
+            Line::RaPlus | Line::RaMinus => Axis::Ra,
+            Line::DecPlus | Line::DecMinus => Axis::Dec,
+        }
+    }
+
+    /// The direction the line asks for.
+    pub fn direction(self) -> Direction {
+        match self {
+            Line::RaPlus | Line::DecPlus => Direction::Plus,
+            Line::RaMinus | Line::DecMinus => Direction::Minus,
+        }
+    }
+
+    /// The other line of the same axis.
+    pub fn opposite(self) -> Line {
+        match self {
+            Line::RaPlus => Line::RaMinus,
+            Line::RaMinus => Line::RaPlus,
+            Line::DecPlus => Line::DecMinus,
+            Line::DecMinus => Line::DecPlus,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum St4Event {
+    /// A guide pulse began (after the line stayed asserted for glitch_us;
+    /// at_us is the edge's own time).
+    PulseStart {
+        axis: Axis,
+        direction: Direction,
+        at_us: u64,
+    },
+    /// The axis' pulse ended: released (at the release edge's time), cut at
+    /// the cap, or stopped by a fault.
+    PulseEnd { axis: Axis, at_us: u64 },
+}
+
+/// What went wrong on the lines, since start-up (wrapping counts).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct St4Counters {
+    /// Level changes undone within `glitch_us` (ignored).
+    pub glitches: u32,
+    /// Episodes of both lines of an axis asserted.
+    pub both_lines: u32,
+    /// Pulses cut at the cap.
+    pub capped: u32,
+    /// Lines still asserted at the cap (each counted once until released).
+    pub stuck: u32,
+    /// Edges older than the previous edge (ignored).
+    pub out_of_order: u32,
+    /// Events dropped from the full queue (the oldest first).
+    pub dropped: u32,
+}
+
+/// Capacity of the event queue.
+pub const ST4_QUEUE_LEN: usize = 16;
+
+#[derive(Clone, Copy, Debug)]
+struct LineState {
+    /// Last raw level seen (asserted = true).
+    raw: bool,
+    /// Debounced level.
+    stable: bool,
+    /// Cut at the cap and not yet released.
+    stuck: bool,
+    /// Time of the raw edge that made `raw` differ from `stable` (a change
+    /// is pending while they differ).
+    raw_since: u64,
+}
+
+impl LineState {
+    const RELEASED: LineState = LineState {
+        raw: false,
+        stable: false,
+        stuck: false,
+        raw_since: 0,
+    };
+
+    fn pending(&self) -> bool {
+        self.raw != self.stable
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum AxisState {
+    Idle,
+    /// A pulse on `line` since `start_us`.
+    Active {
+        line: Line,
+        start_us: u64,
+    },
+    /// Both lines were asserted; waiting for both to be released.
+    Blocked,
+}
+
+/// A fixed ring of events; full: the oldest is overwritten.
+struct Queue {
+    buf: [St4Event; ST4_QUEUE_LEN],
+    head: usize,
+    len: usize,
+}
+
+impl Queue {
+    const fn new() -> Self {
+        Queue {
+            buf: [St4Event::PulseEnd {
+                axis: Axis::Ra,
+                at_us: 0,
+            }; ST4_QUEUE_LEN],
+            head: 0,
+            len: 0,
+        }
+    }
+
+    /// Returns false when an old event had to be dropped.
+    fn push(&mut self, ev: St4Event) -> bool {
+        let mut kept = true;
+        if self.len >= ST4_QUEUE_LEN {
+            self.head = (self.head + 1) % ST4_QUEUE_LEN;
+            self.len = ST4_QUEUE_LEN - 1;
+            kept = false;
+        }
+        if let Some(slot) = self.buf.get_mut((self.head + self.len) % ST4_QUEUE_LEN) {
+            *slot = ev;
+            self.len += 1;
+        }
+        kept
+    }
+
+    fn pop(&mut self) -> Option<St4Event> {
+        if self.len == 0 {
+            return None;
+        }
+        let ev = self.buf.get(self.head).copied();
+        self.head = (self.head + 1) % ST4_QUEUE_LEN;
+        self.len -= 1;
+        ev
+    }
+}
+
+/// What `advance` does next.
+#[derive(Clone, Copy)]
+enum Action {
+    Confirm(Line),
+    Cut(Axis),
+}
+
+/// The ST4 state machine: per-line debounce, per-axis pulses, the event
+/// queue and the fault counters. See the module documentation.
+pub struct St4 {
+    glitch_us: u64,
+    cap_us: u64,
+    /// RA+, RA-, Dec+, Dec-.
+    lines: [LineState; 4],
+    /// RA, Dec.
+    axes: [AxisState; 2],
+    queue: Queue,
+    counters: St4Counters,
+    /// The latest time seen (edges and polls).
+    now_us: u64,
+    /// The time of the latest accepted edge.
+    last_edge_us: u64,
+}
+
+impl St4 {
+    /// All lines released, no pulse, time 0. `glitch_us` 0 confirms every
+    /// edge at once; `pulse_cap_us` 0 cuts every pulse at its start.
+    pub fn new(glitch_us: u32, pulse_cap_us: u32) -> Self {
+        St4 {
+            glitch_us: glitch_us as u64,
+            cap_us: pulse_cap_us as u64,
+            lines: [LineState::RELEASED; 4],
+            axes: [AxisState::Idle; 2],
+            queue: Queue::new(),
+            counters: St4Counters::default(),
+            now_us: 0,
+            last_edge_us: 0,
+        }
+    }
+
+    /// A raw edge from the hardware: the line's new level (asserted = true)
+    /// and its timestamp.
+    pub fn edge(&mut self, line: Line, asserted: bool, at_us: u64) {
+        if at_us < self.last_edge_us {
+            self.counters.out_of_order = self.counters.out_of_order.wrapping_add(1);
+            return;
+        }
+        self.last_edge_us = at_us;
+        // An edge delivered after a poll at a later time takes effect at
+        // that time: what was decided up to then stands.
+        let at_us = at_us.max(self.now_us);
+        // Everything due before this edge happens first (confirmations due
+        // at its very time too; a cut due then waits for it).
+        self.advance(at_us, false);
+        let st = self.line_mut(line);
+        if st.raw == asserted {
+            return;
+        }
+        st.raw = asserted;
+        if st.raw == st.stable {
+            // The pending change was undone within glitch_us.
+            self.counters.glitches = self.counters.glitches.wrapping_add(1);
+        } else {
+            st.raw_since = at_us;
+        }
+        // With glitch_us = 0 it is due at once.
+        self.advance(self.now_us, true);
+    }
+
+    /// Advance time (called at least every glitch_us while a line is
+    /// pending, and regularly otherwise); emits confirmed starts, cap cuts.
+    /// Call until `None`.
+    pub fn poll(&mut self, now_us: u64) -> Option<St4Event> {
+        self.advance(now_us, true);
+        self.queue.pop()
+    }
+
+    pub fn counters(&self) -> St4Counters {
+        self.counters
+    }
+
+    /// When poll() next needs to be called to confirm a pending edge or cut
+    /// a pulse, if ever (the latest time seen when events are waiting).
+    pub fn next_deadline_us(&self) -> Option<u64> {
+        if self.queue.len > 0 {
+            return Some(self.now_us);
+        }
+        let mut next: Option<u64> = None;
+        let mut take = |t: u64| {
+            next = Some(match next {
+                Some(n) if n <= t => n,
+                _ => t,
+            })
+        };
+        for st in self.lines.iter() {
+            if st.pending() {
+                take(st.raw_since.saturating_add(self.glitch_us));
+            }
+        }
+        for axis in [Axis::Ra, Axis::Dec] {
+            if let Some(t) = self.cut_time(axis) {
+                take(t);
+            }
+        }
+        next
+    }
+
+    /// Whether `line` is asserted (debounced).
+    pub fn is_asserted(&self, line: Line) -> bool {
+        self.line(line).stable
+    }
+
+    /// The pulse running on `axis`, if any: its direction and start time.
+    pub fn active_pulse(&self, axis: Axis) -> Option<(Direction, u64)> {
+        match self.axis(axis) {
+            AxisState::Active { line, start_us } => Some((line.direction(), start_us)),
+            _ => None,
+        }
+    }
+
+    fn line(&self, line: Line) -> &LineState {
+        match line {
+            Line::RaPlus => &self.lines[0],
+            Line::RaMinus => &self.lines[1],
+            Line::DecPlus => &self.lines[2],
+            Line::DecMinus => &self.lines[3],
+        }
+    }
+
+    fn line_mut(&mut self, line: Line) -> &mut LineState {
+        match line {
+            Line::RaPlus => &mut self.lines[0],
+            Line::RaMinus => &mut self.lines[1],
+            Line::DecPlus => &mut self.lines[2],
+            Line::DecMinus => &mut self.lines[3],
+        }
+    }
+
+    fn axis(&self, axis: Axis) -> AxisState {
+        match axis {
+            Axis::Ra => self.axes[0],
+            Axis::Dec => self.axes[1],
+        }
+    }
+
+    fn set_axis(&mut self, axis: Axis, state: AxisState) {
+        match axis {
+            Axis::Ra => self.axes[0] = state,
+            Axis::Dec => self.axes[1] = state,
+        }
+    }
+
+    fn push(&mut self, ev: St4Event) {
+        if !self.queue.push(ev) {
+            self.counters.dropped = self.counters.dropped.wrapping_add(1);
+        }
+    }
+
+    /// When the axis' pulse is to be cut, if it runs and the cut is
+    /// decided: no edge at or before the cut time is still pending on the
+    /// axis (its confirmation could end the pulse earlier).
+    fn cut_time(&self, axis: Axis) -> Option<u64> {
+        let AxisState::Active { line, start_us } = self.axis(axis) else {
+            return None;
+        };
+        let cut = start_us.saturating_add(self.cap_us);
+        for l in [line, line.opposite()] {
+            let st = self.line(l);
+            if st.pending() && st.raw_since <= cut {
+                return None;
+            }
+        }
+        Some(cut)
+    }
+
+    /// Processes everything due at or before `now_us` (cuts due at `now_us`
+    /// only if `cuts_at_now`), in the order of the events' own times
+    /// (confirmations first on a tie).
+    fn advance(&mut self, now_us: u64, cuts_at_now: bool) {
+        if now_us > self.now_us {
+            self.now_us = now_us;
+        }
+        let now = self.now_us;
+        // Each action confirms a pending line (4 at most) or cuts a pulse
+        // (one per confirmed assert, plus the 2 running): 10 at most.
+        for _ in 0..16 {
+            let mut best: Option<(u64, Action)> = None;
+            for line in [Line::RaPlus, Line::RaMinus, Line::DecPlus, Line::DecMinus] {
+                let st = self.line(line);
+                if st.pending() && st.raw_since.saturating_add(self.glitch_us) <= now {
+                    match best {
+                        Some((t, _)) if t <= st.raw_since => {}
+                        _ => best = Some((st.raw_since, Action::Confirm(line))),
+                    }
+                }
+            }
+            for axis in [Axis::Ra, Axis::Dec] {
+                if let Some(cut) = self.cut_time(axis) {
+                    if cut < now || (cuts_at_now && cut == now) {
+                        match best {
+                            Some((t, _)) if t <= cut => {}
+                            _ => best = Some((cut, Action::Cut(axis))),
+                        }
+                    }
+                }
+            }
+            match best {
+                None => break,
+                Some((_, Action::Confirm(line))) => self.confirm(line),
+                Some((_, Action::Cut(axis))) => self.cut(axis),
+            }
+        }
+    }
+
+    fn confirm(&mut self, line: Line) {
+        let st = self.line_mut(line);
+        st.stable = st.raw;
+        let (asserted, at_us) = (st.stable, st.raw_since);
+        let axis = line.axis();
+        let other = self.line(line.opposite()).stable;
+        let state = self.axis(axis);
+        if asserted {
+            if other {
+                // Both lines asserted.
+                if let AxisState::Active { .. } = state {
+                    self.push(St4Event::PulseEnd { axis, at_us });
+                }
+                if state != AxisState::Blocked {
+                    self.counters.both_lines = self.counters.both_lines.wrapping_add(1);
+                    self.set_axis(axis, AxisState::Blocked);
+                }
+            } else if state == AxisState::Idle {
+                self.set_axis(
+                    axis,
+                    AxisState::Active {
+                        line,
+                        start_us: at_us,
+                    },
+                );
+                self.push(St4Event::PulseStart {
+                    axis,
+                    direction: line.direction(),
+                    at_us,
+                });
+            }
+        } else {
+            self.line_mut(line).stuck = false;
+            match state {
+                AxisState::Active { line: l, .. } if l == line => {
+                    self.set_axis(axis, AxisState::Idle);
+                    self.push(St4Event::PulseEnd { axis, at_us });
+                }
+                AxisState::Blocked if !other => self.set_axis(axis, AxisState::Idle),
+                _ => {}
+            }
+        }
+    }
+
+    fn cut(&mut self, axis: Axis) {
+        if let AxisState::Active { line, start_us } = self.axis(axis) {
+            let at_us = start_us.saturating_add(self.cap_us);
+            self.set_axis(axis, AxisState::Idle);
+            self.push(St4Event::PulseEnd { axis, at_us });
+            self.counters.capped = self.counters.capped.wrapping_add(1);
+            self.line_mut(line).stuck = true;
+            self.counters.stuck = self.counters.stuck.wrapping_add(1);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use Axis::*;
+    use Direction::*;
+    use Line::*;
+    use St4Event::*;
+
+    const G: u64 = 1_000;
+    const CAP: u64 = 10_000_000;
+
+    fn st4() -> St4 {
+        St4::new(G as u32, CAP as u32)
+    }
+
+    fn drain(s: &mut St4, now: u64) -> ([Option<St4Event>; 20], usize) {
+        let mut out = [None; 20];
+        let mut n = 0;
+        while let Some(ev) = s.poll(now) {
+            assert!(n < 20, "too many events");
+            out[n] = Some(ev);
+            n += 1;
+        }
+        (out, n)
+    }
+
+    fn one(s: &mut St4, now: u64) -> Option<St4Event> {
+        let (out, n) = drain(s, now);
+        assert!(n <= 1, "{:?}", &out[..n]);
+        out[0]
+    }
+
+    #[test]
+    fn a_clean_pulse() {
+        let mut s = st4();
+        assert_eq!(s.next_deadline_us(), None);
+        s.edge(RaPlus, true, 5_000);
+        assert_eq!(s.next_deadline_us(), Some(5_000 + G));
+        assert_eq!(one(&mut s, 5_999), None);
+        assert_eq!(
+            one(&mut s, 6_000),
+            Some(PulseStart {
+                axis: Ra,
+                direction: Plus,
+                at_us: 5_000
+            })
+        );
+        assert_eq!(s.active_pulse(Ra), Some((Plus, 5_000)));
+        assert_eq!(s.next_deadline_us(), Some(5_000 + CAP));
+        s.edge(RaPlus, false, 505_000);
+        assert_eq!(one(&mut s, 505_500), None);
+        assert_eq!(
+            one(&mut s, 506_000),
+            Some(PulseEnd {
+                axis: Ra,
+                at_us: 505_000
+            })
+        );
+        assert_eq!(s.next_deadline_us(), None);
+        assert_eq!(s.counters(), St4Counters::default());
+        // Dec- the same way.
+        s.edge(DecMinus, true, 1_000_000);
+        s.edge(DecMinus, false, 1_200_000);
+        let (out, n) = drain(&mut s, 1_300_000);
+        assert_eq!(n, 2);
+        assert_eq!(
+            out[0],
+            Some(PulseStart {
+                axis: Dec,
+                direction: Minus,
+                at_us: 1_000_000
+            })
+        );
+        assert_eq!(
+            out[1],
+            Some(PulseEnd {
+                axis: Dec,
+                at_us: 1_200_000
+            })
+        );
+    }
+
+    #[test]
+    fn contact_bounce_then_a_clean_assert() {
+        let mut s = st4();
+        for (lvl, t) in [(true, 0), (false, 100), (true, 250), (false, 400)] {
+            s.edge(DecPlus, lvl, t);
+            assert_eq!(one(&mut s, t), None);
+        }
+        s.edge(DecPlus, true, 600);
+        assert_eq!(one(&mut s, 1_599), None);
+        assert_eq!(
+            one(&mut s, 1_600),
+            Some(PulseStart {
+                axis: Dec,
+                direction: Plus,
+                at_us: 600
+            })
+        );
+        assert_eq!(s.counters().glitches, 2);
+        // Bounce on release: a dropout inside the pulse is a glitch too.
+        s.edge(DecPlus, false, 300_000);
+        s.edge(DecPlus, true, 300_050);
+        s.edge(DecPlus, false, 300_200);
+        assert_eq!(one(&mut s, 301_199), None);
+        assert_eq!(
+            one(&mut s, 301_200),
+            Some(PulseEnd {
+                axis: Dec,
+                at_us: 300_200
+            })
+        );
+        assert_eq!(s.counters().glitches, 3);
+        assert_eq!(s.active_pulse(Dec), None);
+    }
+
+    #[test]
+    fn a_glitch_alone_is_ignored() {
+        let mut s = st4();
+        s.edge(RaMinus, true, 10_000);
+        s.edge(RaMinus, false, 10_999);
+        assert_eq!(s.next_deadline_us(), None);
+        assert_eq!(one(&mut s, 100_000_000), None);
+        assert_eq!(
+            s.counters(),
+            St4Counters {
+                glitches: 1,
+                ..St4Counters::default()
+            }
+        );
+        // Exactly glitch_us is a pulse.
+        s.edge(RaMinus, true, 200_000_000);
+        s.edge(RaMinus, false, 200_001_000);
+        let (_, n) = drain(&mut s, 300_000_000);
+        assert_eq!(n, 2);
+    }
+
+    #[test]
+    fn both_lines_stop_the_axis_until_both_are_released() {
+        let mut s = st4();
+        s.edge(RaPlus, true, 0);
+        assert!(matches!(one(&mut s, G), Some(PulseStart { .. })));
+        s.edge(RaMinus, true, 50_000);
+        assert_eq!(
+            one(&mut s, 51_000),
+            Some(PulseEnd {
+                axis: Ra,
+                at_us: 50_000
+            })
+        );
+        assert_eq!(s.counters().both_lines, 1);
+        // Dec still works meanwhile.
+        s.edge(DecPlus, true, 60_000);
+        s.edge(DecPlus, false, 70_000);
+        assert_eq!(drain(&mut s, 80_000).1, 2);
+        // One released, then re-asserted: still the same episode.
+        s.edge(RaPlus, false, 100_000);
+        s.edge(RaPlus, true, 200_000);
+        s.edge(RaPlus, false, 300_000);
+        assert_eq!(one(&mut s, 400_000), None);
+        assert_eq!(s.counters().both_lines, 1);
+        // Both released: a new pulse is accepted.
+        s.edge(RaMinus, false, 500_000);
+        assert_eq!(one(&mut s, 600_000), None);
+        s.edge(RaMinus, true, 700_000);
+        assert_eq!(
+            one(&mut s, 701_000),
+            Some(PulseStart {
+                axis: Ra,
+                direction: Minus,
+                at_us: 700_000
+            })
+        );
+        // Both at once from idle: no pulse at all, counted.
+        let mut s = st4();
+        s.edge(DecPlus, true, 0);
+        s.edge(DecMinus, true, 10);
+        let (out, n) = drain(&mut s, 5_000);
+        // Dec+ was confirmed first (at 1000), then Dec- ended it.
+        assert_eq!(n, 2, "{:?}", &out[..n]);
+        assert_eq!(
+            out[1],
+            Some(PulseEnd {
+                axis: Dec,
+                at_us: 10
+            })
+        );
+        assert_eq!(s.counters().both_lines, 1);
+        let mut s = st4();
+        s.edge(DecPlus, true, 0);
+        s.edge(DecMinus, true, 0);
+        let (out, n) = drain(&mut s, 5_000);
+        assert_eq!(n, 2, "{:?}", &out[..n]);
+        assert_eq!(
+            out[1],
+            Some(PulseEnd {
+                axis: Dec,
+                at_us: 0
+            })
+        );
+    }
+
+    #[test]
+    fn a_stuck_line_is_cut_at_the_cap_and_counted_once() {
+        let mut s = st4();
+        s.edge(RaPlus, true, 1_000);
+        assert!(matches!(one(&mut s, 2_000), Some(PulseStart { .. })));
+        assert_eq!(s.next_deadline_us(), Some(1_000 + CAP));
+        assert_eq!(one(&mut s, CAP), None);
+        assert_eq!(
+            one(&mut s, 1_000 + CAP),
+            Some(PulseEnd {
+                axis: Ra,
+                at_us: 1_000 + CAP
+            })
+        );
+        let c = s.counters();
+        assert_eq!((c.capped, c.stuck), (1, 1));
+        assert_eq!(s.next_deadline_us(), None);
+        // Stays asserted for an hour: nothing more, counted once.
+        for k in 1..100u64 {
+            assert_eq!(one(&mut s, k * 36_000_000), None);
+        }
+        let c = s.counters();
+        assert_eq!((c.capped, c.stuck), (1, 1));
+        // Its release makes no event; the next pulse is normal.
+        s.edge(RaPlus, false, 4_000_000_000);
+        assert_eq!(one(&mut s, 4_001_000_000), None);
+        s.edge(RaPlus, true, 4_002_000_000);
+        s.edge(RaPlus, false, 4_002_500_000);
+        assert_eq!(drain(&mut s, 4_003_000_000).1, 2);
+        assert_eq!(s.counters().capped, 1);
+    }
+
+    #[test]
+    fn the_cap() {
+        // Exactly the cap: a normal end.
+        let mut s = st4();
+        s.edge(DecMinus, true, 0);
+        s.edge(DecMinus, false, CAP);
+        let (out, n) = drain(&mut s, CAP + G);
+        assert_eq!(n, 2);
+        assert_eq!(
+            out[1],
+            Some(PulseEnd {
+                axis: Dec,
+                at_us: CAP
+            })
+        );
+        assert_eq!(s.counters().capped, 0);
+        // A release just before the cap, still being debounced when the cap
+        // comes: the pulse ends at the release, not at the cap.
+        let mut s = st4();
+        s.edge(DecMinus, true, 0);
+        assert_eq!(drain(&mut s, G).1, 1);
+        s.edge(DecMinus, false, CAP - 10);
+        assert_eq!(one(&mut s, CAP), None);
+        assert_eq!(one(&mut s, CAP + 500), None);
+        assert_eq!(
+            one(&mut s, CAP - 10 + G),
+            Some(PulseEnd {
+                axis: Dec,
+                at_us: CAP - 10
+            })
+        );
+        assert_eq!(s.counters().capped, 0);
+        // ... unless it was a dropout: then the cut comes at the cap.
+        let mut s = st4();
+        s.edge(DecMinus, true, 0);
+        assert_eq!(drain(&mut s, G).1, 1);
+        s.edge(DecMinus, false, CAP - 10);
+        assert_eq!(one(&mut s, CAP + 100), None);
+        s.edge(DecMinus, true, CAP + 200);
+        assert_eq!(
+            one(&mut s, CAP + 200),
+            Some(PulseEnd {
+                axis: Dec,
+                at_us: CAP
+            })
+        );
+        assert_eq!(s.counters().capped, 1);
+        assert_eq!(s.counters().glitches, 1);
+        // Not polled for a long time: start and cut come together, in order.
+        let mut s = st4();
+        s.edge(RaMinus, true, 7);
+        let (out, n) = drain(&mut s, 3 * CAP);
+        assert_eq!(n, 2);
+        assert!(matches!(out[0], Some(PulseStart { at_us: 7, .. })));
+        assert_eq!(
+            out[1],
+            Some(PulseEnd {
+                axis: Ra,
+                at_us: 7 + CAP
+            })
+        );
+    }
+
+    #[test]
+    fn out_of_order_edges_are_ignored_and_counted() {
+        let mut s = st4();
+        s.edge(RaPlus, true, 50_000);
+        s.edge(DecPlus, true, 40_000);
+        assert_eq!(s.counters().out_of_order, 1);
+        assert!(!s.is_asserted(DecPlus));
+        // Equal times are fine.
+        s.edge(DecMinus, true, 50_000);
+        assert_eq!(s.counters().out_of_order, 1);
+        let (_, n) = drain(&mut s, 60_000);
+        assert_eq!(n, 2);
+        // A poll back in time changes nothing.
+        assert_eq!(one(&mut s, 0), None);
+        s.edge(RaPlus, false, 70_000);
+        assert_eq!(one(&mut s, 65_000), None);
+        assert!(matches!(
+            one(&mut s, 71_000),
+            Some(PulseEnd { axis: Ra, .. })
+        ));
+        // An edge delivered late (older than the last poll, not older than
+        // the last edge) takes effect at the time of that poll.
+        s.edge(DecMinus, false, 70_500);
+        assert_eq!(s.counters().out_of_order, 1);
+        assert_eq!(one(&mut s, 71_999), None, "confirmed at 72_000, not before");
+        assert_eq!(
+            one(&mut s, 72_000),
+            Some(PulseEnd {
+                axis: Dec,
+                at_us: 71_000
+            })
+        );
+        // A repeated level is ignored.
+        s.edge(DecMinus, false, 80_000);
+        assert_eq!(s.next_deadline_us(), None);
+        assert_eq!(s.counters().out_of_order, 1);
+    }
+
+    #[test]
+    fn a_full_queue_drops_the_oldest() {
+        let mut s = st4();
+        // 10 Dec pulses without polling: 20 events, 16 kept.
+        for k in 0..10u64 {
+            s.edge(DecPlus, true, k * 10_000);
+            s.edge(DecPlus, false, k * 10_000 + 5_000);
+        }
+        let (out, n) = drain(&mut s, 1_000_000);
+        assert_eq!(n, ST4_QUEUE_LEN);
+        assert_eq!(s.counters().dropped, 4);
+        // The first two pulses went; the third pulse's start comes first.
+        assert!(matches!(out[0], Some(PulseStart { at_us: 20_000, .. })));
+        assert_eq!(
+            out[ST4_QUEUE_LEN - 1],
+            Some(PulseEnd {
+                axis: Dec,
+                at_us: 95_000
+            })
+        );
+        assert_eq!(one(&mut s, 2_000_000), None);
+    }
+
+    #[test]
+    fn zero_glitch_confirms_at_once() {
+        let mut s = St4::new(0, CAP as u32);
+        s.edge(RaMinus, true, 10);
+        assert!(matches!(s.poll(10), Some(PulseStart { at_us: 10, .. })));
+        s.edge(RaMinus, false, 11);
+        assert_eq!(
+            s.poll(11),
+            Some(PulseEnd {
+                axis: Ra,
+                at_us: 11
+            })
+        );
+        assert_eq!(s.counters(), St4Counters::default());
+    }
+
+    #[test]
+    fn size() {
+        assert_eq!(core::mem::size_of::<St4Event>(), 16);
+        assert_eq!(core::mem::size_of::<St4>(), 424);
+    }
+
+    /// Random edges and polls: never panics; per axis the events alternate
+    /// start/end with non-decreasing times and each pulse lasts at most the
+    /// cap.
+    #[test]
+    fn random_edges_keep_the_invariants() {
+        let mut x = 0x2545_f491_4f6c_dd1du64;
+        let mut rnd = move || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        for glitch in [0u32, 1_000] {
+            let mut s = St4::new(glitch, 20_000);
+            let mut t = 0u64;
+            let mut open: [Option<u64>; 2] = [None, None];
+            let mut last: [u64; 2] = [0, 0];
+            for _ in 0..200_000 {
+                let r = rnd();
+                t += r % 3_000;
+                let line = [RaPlus, RaMinus, DecPlus, DecMinus][(r >> 20) as usize % 4];
+                let back = if (r >> 30) % 50 == 0 { 5_000 } else { 0 };
+                s.edge(line, (r >> 24) & 1 == 1, t.saturating_sub(back));
+                if (r >> 40) % 3 == 0 {
+                    let now = t + (r >> 44) % 2_000;
+                    while let Some(ev) = s.poll(now) {
+                        match ev {
+                            PulseStart { axis, at_us, .. } => {
+                                let i = axis as usize;
+                                assert!(open[i].is_none());
+                                assert!(at_us >= last[i]);
+                                open[i] = Some(at_us);
+                                last[i] = at_us;
+                            }
+                            PulseEnd { axis, at_us } => {
+                                let i = axis as usize;
+                                let start = open[i].take().unwrap();
+                                assert!(at_us >= start && at_us - start <= 20_000);
+                                last[i] = at_us;
+                            }
+                        }
+                    }
+                }
+            }
+            let c = s.counters();
+            assert_eq!(c.dropped, 0);
+            assert!(c.out_of_order > 0 && c.both_lines > 0 && c.capped > 0);
+            if glitch > 0 {
+                assert!(c.glitches > 0);
+            }
+        }
+    }
+}
