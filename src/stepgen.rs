@@ -11,8 +11,11 @@
 //!
 //! - **RAM**: 12 bytes per axis (`phase: u32`, `increment: u32`,
 //!   `forward: bool`, `stepped: bool`, padded to 4).
-//! - **Per tick**: one 32-bit add with carry-out, two stores and a branch:
-//!   about 10 Cortex-M4 instructions per axis, no float, no division.
+//! - **Per tick**: one 32-bit add with carry-out, two stores and a branch,
+//!   no float, no division: 13 Cortex-M4 instructions per axis (thumbv7em,
+//!   opt-level "s", counted in the assembly of a wrapper that also maps the
+//!   result to a step code), about 1.3 M instructions/s for two axes at
+//!   50 kHz.
 //!   [`PhaseAccumulator::set_rate`] does one `f64` division and
 //!   multiplication (software floating point on the Cortex-M4F, a few
 //!   hundred cycles), but it runs once per rate change, not per tick.
