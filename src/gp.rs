@@ -139,9 +139,8 @@ impl<S: Scalar> Gp<S> {
         // t' of each member is needed again after the solves.
         let mut t = [S::ZERO; SUBSET];
         t[..n].copy_from_slice(&self.s1[..n]);
-        self.chol.solve(&mut self.weights[..n]);
-        self.chol.solve(&mut self.s0[..n]);
-        self.chol.solve(&mut self.s1[..n]);
+        self.chol
+            .solve3(&mut self.weights[..n], &mut self.s0[..n], &mut self.s1[..n]);
 
         let mut f00 = S::ZERO;
         for &x in &self.s0[..n] {

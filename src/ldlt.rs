@@ -60,40 +60,52 @@ impl<S: Scalar, const CAP: usize, const TRI: usize> Ldlt<S, CAP, TRI> {
     ///
     /// Row by row: first `w_j = L_ij D_j = A_ij - Σ_{k<j} w_k L_jk` for
     /// `j < i`, then `L_ij = w_j / D_j` and `D_i = A_ii - Σ_j w_j L_ij`.
-    /// Rows are taken in pairs, so that each row `j` of `L` is read once for
-    /// both: the dot products are most of the cost, and this saves a third
-    /// of their loads.
+    /// Rows are taken in blocks of [`BLOCK`]: each row `j` of `L` above the
+    /// block is then read once for all of its rows. The dot products are
+    /// nearly all of the cost, and this takes their loads from two per
+    /// multiply-add towards one.
     pub fn factor(&mut self) -> Result<(), FactorError> {
         let n = self.n;
         let mut i = 0;
         while i < n {
-            let ri = row_start(i);
-            if i + 1 < n {
-                let ri1 = row_start(i + 1);
+            let rows = BLOCK.min(n - i);
+            if rows == BLOCK {
                 for j in 0..i {
                     let rj = row_start(j);
-                    let (head, tail) = self.a.split_at_mut(ri);
-                    let (row_i, row_i1) = tail.split_at_mut(ri1 - ri);
-                    let (d0, d1) = dot2(&row_i[..j], &row_i1[..j], &head[rj..rj + j]);
-                    row_i[j] -= d0;
-                    row_i1[j] -= d1;
+                    let (head, tail) = self.a.split_at_mut(row_start(i));
+                    let lj = &head[rj..rj + j];
+                    let (r0, rest) = tail.split_at_mut(i + 1);
+                    let (r1, rest) = rest.split_at_mut(i + 2);
+                    let (r2, r3) = rest.split_at_mut(i + 3);
+                    let d = dot_rows([&r0[..j], &r1[..j], &r2[..j], &r3[..j]], lj);
+                    r0[j] -= d[0];
+                    r1[j] -= d[1];
+                    r2[j] -= d[2];
+                    r3[j] -= d[3];
                 }
-                self.finish_row(i)?;
-                let (head, tail) = self.a.split_at_mut(ri1);
-                let d = dot(&tail[..i], &head[ri..ri + i]);
-                tail[i] -= d;
-                self.finish_row(i + 1)?;
-                i += 2;
             } else {
-                for j in 0..i {
+                for r in 0..rows {
+                    let ri = row_start(i + r);
+                    for j in 0..i {
+                        let rj = row_start(j);
+                        let (head, tail) = self.a.split_at_mut(ri);
+                        let d = dot(&tail[..j], &head[rj..rj + j]);
+                        tail[j] -= d;
+                    }
+                }
+            }
+            // Inside the block: row i + r needs rows i..i + r finished.
+            for r in 0..rows {
+                let ri = row_start(i + r);
+                for j in i..i + r {
                     let rj = row_start(j);
                     let (head, tail) = self.a.split_at_mut(ri);
                     let d = dot(&tail[..j], &head[rj..rj + j]);
                     tail[j] -= d;
                 }
-                self.finish_row(i)?;
-                i += 1;
+                self.finish_row(i + r)?;
             }
+            i += rows;
         }
         Ok(())
     }
@@ -120,22 +132,63 @@ impl<S: Scalar, const CAP: usize, const TRI: usize> Ldlt<S, CAP, TRI> {
     /// Solve `A x = b` in place, with `A` factored. `b.len()` must be `dim()`.
     pub fn solve(&self, b: &mut [S]) {
         let n = self.n.min(b.len());
-        // L y = b
         for i in 0..n {
             let ri = row_start(i);
             let s = dot(&self.a[ri..ri + i], &b[..i]);
             b[i] -= s;
         }
-        // D z = y
         for (i, bi) in b.iter_mut().enumerate().take(n) {
             *bi /= self.a[row_start(i) + i];
         }
-        // Lᵀ x = z, column-oriented so that rows of L are read contiguously.
         for i in (0..n).rev() {
             let ri = row_start(i);
-            let xi = b[i];
-            for (bk, &l) in b[..i].iter_mut().zip(&self.a[ri..ri + i]) {
+            let (head, tail) = b.split_at_mut(i);
+            let xi = tail[0];
+            for (bk, &l) in head.iter_mut().zip(&self.a[ri..ri + i]) {
                 *bk -= l * xi;
+            }
+        }
+    }
+
+    /// Solve for three right-hand sides at once (the inference's `y`, `1`
+    /// and `t`): each element of `L` is loaded once for all three.
+    pub fn solve3(&self, x: &mut [S], y: &mut [S], z: &mut [S]) {
+        let n = self.n.min(x.len()).min(y.len()).min(z.len());
+        // L u = b, row by row.
+        for i in 0..n {
+            let ri = row_start(i);
+            let mut s = [S::ZERO; 3];
+            for (((&l, &a), &b), &c) in self.a[ri..ri + i]
+                .iter()
+                .zip(&x[..i])
+                .zip(&y[..i])
+                .zip(&z[..i])
+            {
+                s[0] += l * a;
+                s[1] += l * b;
+                s[2] += l * c;
+            }
+            x[i] -= s[0];
+            y[i] -= s[1];
+            z[i] -= s[2];
+        }
+        for i in 0..n {
+            let d = self.a[row_start(i) + i];
+            x[i] /= d;
+            y[i] /= d;
+            z[i] /= d;
+        }
+        // Lᵀ u = v, column-oriented so that rows of L are read contiguously.
+        for i in (0..n).rev() {
+            let ri = row_start(i);
+            let (xh, xt) = x.split_at_mut(i);
+            let (yh, yt) = y.split_at_mut(i);
+            let (zh, zt) = z.split_at_mut(i);
+            let (xi, yi, zi) = (xt[0], yt[0], zt[0]);
+            for (((&l, a), b), c) in self.a[ri..ri + i].iter().zip(xh).zip(yh).zip(zh) {
+                *a -= l * xi;
+                *b -= l * yi;
+                *c -= l * zi;
             }
         }
     }
@@ -147,24 +200,38 @@ impl<S: Scalar, const CAP: usize, const TRI: usize> Default for Ldlt<S, CAP, TRI
     }
 }
 
-/// Two dot products sharing their second operand: `(a·c, b·c)`.
-fn dot2<S: Scalar>(a: &[S], b: &[S], c: &[S]) -> (S, S) {
-    let n = a.len().min(b.len()).min(c.len());
-    let (a, b, c) = (&a[..n], &b[..n], &c[..n]);
-    let mut acc = [S::ZERO; 4];
-    let pairs = n / 2;
-    for k in 0..pairs {
-        let (k0, k1) = (2 * k, 2 * k + 1);
-        acc[0] += a[k0] * c[k0];
-        acc[1] += b[k0] * c[k0];
-        acc[2] += a[k1] * c[k1];
-        acc[3] += b[k1] * c[k1];
+/// Rows factored together (see [`Ldlt::factor`]).
+const BLOCK: usize = 4;
+
+/// `BLOCK` dot products sharing their second operand: `rows[r] · c`, over
+/// the shortest of the slices.
+#[inline(always)]
+fn dot_rows<S: Scalar>(rows: [&[S]; BLOCK], c: &[S]) -> [S; BLOCK] {
+    let n = rows.iter().fold(c.len(), |n, r| n.min(r.len()));
+    let mut acc = [S::ZERO; BLOCK];
+    let mut k = 0;
+    // One index for every operand and four steps per pass: VLDR takes only
+    // immediate offsets, so each operand costs one pointer increment per
+    // pass, shared by its four loads.
+    while k + 4 <= n {
+        for step in 0..4 {
+            // SAFETY: k + step < n <= the length of every slice.
+            unsafe {
+                let ck = *c.get_unchecked(k + step);
+                for (a, row) in acc.iter_mut().zip(&rows) {
+                    *a += *row.get_unchecked(k + step) * ck;
+                }
+            }
+        }
+        k += 4;
     }
-    if n % 2 == 1 {
-        acc[0] += a[n - 1] * c[n - 1];
-        acc[1] += b[n - 1] * c[n - 1];
+    while k < n {
+        for (a, row) in acc.iter_mut().zip(&rows) {
+            *a += row[k] * c[k];
+        }
+        k += 1;
     }
-    (acc[0] + acc[2], acc[1] + acc[3])
+    acc
 }
 
 /// Dot product with four partial sums: the factorisation spends most of
