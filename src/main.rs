@@ -1,24 +1,432 @@
-//! Firmware entry point: boots the board, then runs the mount's tasks.
+//! Firmware entry point: boots the board, validates the mount configuration,
+//! then tracks at the sidereal rate and obeys ST4 guide pulses.
 //!
-//! For now it brings up the clocks through `hal`, logs a startup line over
-//! defmt (RTT) and blinks the status LED with a heartbeat log line; guiding,
-//! tracking and the gear-error model are added as their tasks land.
+//! # Structure
+//!
+//! The library (`mkgp_mount`) decides everything and knows no hardware; the
+//! board crate (`hal`) drives pins and timers and knows no guiding; this file
+//! glues them together on embassy. `hal` cannot depend on the library (the
+//! firmware package depends on `hal`: a dependency back would be a package
+//! cycle), so the glue that needs both lives here:
+//!
+//! - **Step tick** (`TIM2` interrupt, NVIC priority `P0`, the highest, at
+//!   `step_tick_hz` = 50 kHz): advances each axis'
+//!   [`PhaseAccumulator`] (integer, no float) and lets `hal`'s [`StepAxis`]
+//!   raise or lower STEP; counts the steps emitted (signed `i64`).
+//! - **ST4 edges** (`EXTI9_5`/`EXTI15_10`, `P1`, in `hal::st4`): each edge is
+//!   timestamped in its interrupt and queued.
+//! - **Guiding task** ([`guiding_task`], on [`EXECUTOR_HIGH`], an
+//!   `InterruptExecutor` on the otherwise unused `SDIO` vector at `P2`): owns
+//!   the library's [`St4`] and the guiding logic; feeds it the edges, calls
+//!   `poll` at `next_deadline_us()`, turns events into rates and sets them
+//!   on the accumulators, on every event and every [`RATE_UPDATE_US`].
+//! - **Thread mode** (lowest): the status log and LED. The gear-error model
+//!   (the controller's `Learner`) will run here too, so inference, which
+//!   takes milliseconds, is preempted by everything above and never delays a
+//!   pulse or a step.
+//!
+//! The seam for the controller (`mkgp_mount::controller`, `Guiding` and
+//! `Learner`) is [`DirectGuiding`]: it has `Guiding`'s `on_event` / `rates`
+//! shape and applies the guide rate while a pulse is active; replacing it by
+//! `Guiding` and adding the frame channel to a thread-mode `Learner` task is
+//! all that remains when the controller lands.
+//!
+//! # Latency from an ST4 edge to the rate change
+//!
+//! The pulse start is confirmed `glitch_us` (1 ms) after the assert edge by
+//! design (debounce): [`St4`] reports it with the edge's own timestamp, and
+//! the guiding task wakes on the deadline. Measured from the moment the
+//! pulse is due (release edge, or the end of the glitch window), the chain
+//! is, on the slowest board (F411 at 96 MHz; the F446 and F407 are 1.75-1.9x
+//! faster):
+//!
+//! | stage | worst case |
+//! |---|---|
+//! | EXTI interrupt (`P1`): stamp, read 4 pins, queue; or time-driver alarm (`P1`) | ~3 µs, plus up to one step tick (~2 µs) preempting it |
+//! | `SDIO` executor interrupt (`P2`) pended, task polled: `St4::edge`/`poll`, `on_event`, `rates` | ~10-20 µs (f32 arithmetic, a few hundred instructions) |
+//! | `set_rate` for both axes inside a critical section (f64 division in software) | ~5-10 µs |
+//! | new increment takes effect on the next tick | <= 20 µs (one tick at 50 kHz) |
+//!
+//! About **50 µs** end to end, or 0.004 % of a 1 s guide pulse: the pulse's
+//! length is reproduced to within 50 µs at both ends (and the ends shift
+//! together, so the length error is smaller). Thread mode (the model) cannot
+//! add to this: every stage above preempts it. What can: defmt logging
+//! from the guiding task (a critical section of a few µs per line) and other
+//! critical sections (embassy's, a few µs). The step tick itself is delayed
+//! by at most the longest critical section (the `set_rate` above, ~10 µs),
+//! less than a tick, so no tick is lost and STEP stays high >= 10 µs.
 #![no_std]
 #![no_main]
+
+use core::cell::{Cell, RefCell};
+use core::sync::atomic::{AtomicU32, Ordering};
 
 use defmt_rtt as _;
 use panic_probe as _;
 
-use embassy_executor::Spawner;
+use embassy_executor::{InterruptExecutor, Spawner};
+use embassy_futures::select::{select, Either};
 use embassy_stm32::gpio::{Level, Output, Speed};
-use embassy_time::{Duration, Ticker};
+use embassy_stm32::interrupt;
+use embassy_stm32::interrupt::{InterruptExt, Priority};
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::blocking_mutex::Mutex;
+use embassy_time::{Duration, Instant, Ticker, Timer};
 
-/// Interval of the heartbeat log line and LED toggle.
+use hal::st4::{RawEdge, St4Edges, St4Line};
+use hal::stepper::{StepAxis, StepTicker};
+use mkgp_mount::mount::{Mount, MountConfig};
+use mkgp_mount::st4::{Axis, Direction, Line, St4, St4Counters, St4Event};
+use mkgp_mount::stepgen::PhaseAccumulator;
+
+/// Interval of the status log line and LED toggle.
 const HEARTBEAT: Duration = Duration::from_secs(1);
+/// Status log every this many heartbeats.
+const STATUS_EVERY: u32 = 10;
+/// The guiding task recomputes and sets the rates at least this often (µs).
+const RATE_UPDATE_US: u64 = 10_000;
+/// DIR level for forward (RA: tracking direction; Dec: north) steps. Flip if
+/// an axis turns the wrong way (or swap one coil's two wires).
+const RA_DIR_FORWARD_HIGH: bool = true;
+const DEC_DIR_FORWARD_HIGH: bool = true;
+/// NVIC priority of the high-priority executor (below the step tick `P0`,
+/// the ST4 EXTI and the time driver `P1`).
+const EXECUTOR_HIGH_PRIORITY: Priority = Priority::P2;
+/// NVIC priority of embassy's time driver (TIM5); `P0` is the step tick's.
+const TIME_DRIVER_PRIORITY: Priority = Priority::P1;
+
+// ---------------------------------------------------------------------------
+// Step tick
+
+/// Everything the step tick touches. Owned by the `TIM2` handler; the
+/// guiding task changes the rates and reads the counts in critical
+/// sections.
+struct Stepping {
+    ticker: StepTicker,
+    ra: StepAxis,
+    dec: StepAxis,
+    ra_acc: PhaseAccumulator,
+    dec_acc: PhaseAccumulator,
+    /// Steps emitted, signed (forward positive).
+    ra_steps: i64,
+    dec_steps: i64,
+}
+
+static STEPPING: Mutex<CriticalSectionRawMutex, RefCell<Option<Stepping>>> =
+    Mutex::new(RefCell::new(None));
+
+/// The step tick (hal::stepper::StepTimer = TIM2): integer work only, about
+/// 60 instructions for both axes.
+#[interrupt]
+fn TIM2() {
+    critical_section::with(|cs| {
+        let mut stepping = STEPPING.borrow(cs).borrow_mut();
+        if let Some(s) = stepping.as_mut() {
+            s.ticker.ack();
+            let due = s.ra_acc.tick();
+            s.ra_steps += i64::from(s.ra.tick(due));
+            let due = s.dec_acc.tick();
+            s.dec_steps += i64::from(s.dec.tick(due));
+        }
+    });
+}
+
+/// Rates for the two axes, steps per second, signed.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Rates {
+    ra_steps_per_s: f32,
+    dec_steps_per_s: f32,
+}
+
+/// The rates last set (f32 bits), for the status log.
+static RA_RATE_BITS: AtomicU32 = AtomicU32::new(0);
+static DEC_RATE_BITS: AtomicU32 = AtomicU32::new(0);
+
+/// Sets both axes' rates (clamped to the mount's maxima); returns the rates
+/// actually set.
+fn set_rates(mount: &Mount, rates: Rates) -> Rates {
+    let tick_hz = mount.config().step_tick_hz;
+    let set = critical_section::with(|cs| {
+        let mut stepping = STEPPING.borrow(cs).borrow_mut();
+        let s = stepping.as_mut()?;
+        Some(Rates {
+            ra_steps_per_s: s.ra_acc.set_rate(
+                rates.ra_steps_per_s,
+                mount.max_ra_steps_per_s(),
+                tick_hz,
+            ),
+            dec_steps_per_s: s.dec_acc.set_rate(
+                rates.dec_steps_per_s,
+                mount.max_dec_steps_per_s(),
+                tick_hz,
+            ),
+        })
+    })
+    .unwrap_or_default();
+    RA_RATE_BITS.store(set.ra_steps_per_s.to_bits(), Ordering::Relaxed);
+    DEC_RATE_BITS.store(set.dec_steps_per_s.to_bits(), Ordering::Relaxed);
+    set
+}
+
+/// Steps emitted so far on (RA, Dec).
+fn step_counts() -> (i64, i64) {
+    critical_section::with(|cs| {
+        STEPPING
+            .borrow(cs)
+            .borrow()
+            .as_ref()
+            .map_or((0, 0), |s| (s.ra_steps, s.dec_steps))
+    })
+}
+
+// ---------------------------------------------------------------------------
+// Guiding (high priority)
+
+static EXECUTOR_HIGH: InterruptExecutor = InterruptExecutor::new();
+
+/// The high-priority executor's vector: SDIO exists on all three chips and
+/// none of the boards uses it.
+#[interrupt]
+unsafe fn SDIO() {
+    // SAFETY: the executor was started on this vector before it was enabled.
+    unsafe { EXECUTOR_HIGH.on_interrupt() }
+}
+
+/// The ST4 counters, for the status log.
+static ST4_COUNTERS: Mutex<CriticalSectionRawMutex, Cell<Option<St4Counters>>> =
+    Mutex::new(Cell::new(None));
+
+/// The controller seam: tracking at the sidereal rate on RA, plus the guide
+/// rate on an axis while a guide pulse on it is active. Same shape as
+/// `mkgp_mount::controller::Guiding` (`on_event`, `rates`), which replaces
+/// it when it lands and adds the feed-forward from the learned gear error.
+struct DirectGuiding {
+    sidereal: f32,
+    guide_ra: f32,
+    guide_dec: f32,
+    ra: Option<Direction>,
+    dec: Option<Direction>,
+}
+
+impl DirectGuiding {
+    fn new(mount: &Mount) -> Self {
+        Self {
+            sidereal: mount.sidereal_ra_steps_per_s(),
+            guide_ra: mount.guide_ra_steps_per_s(),
+            guide_dec: mount.guide_dec_steps_per_s(),
+            ra: None,
+            dec: None,
+        }
+    }
+
+    fn on_event(&mut self, ev: St4Event) {
+        match ev {
+            St4Event::PulseStart {
+                axis, direction, ..
+            } => match axis {
+                Axis::Ra => self.ra = Some(direction),
+                Axis::Dec => self.dec = Some(direction),
+            },
+            St4Event::PulseEnd { axis, .. } => match axis {
+                Axis::Ra => self.ra = None,
+                Axis::Dec => self.dec = None,
+            },
+        }
+    }
+
+    fn rates(&mut self, _now_us: u64, _ra_steps: i64) -> Rates {
+        let offset = |d: Option<Direction>, rate: f32| match d {
+            Some(Direction::Plus) => rate,
+            Some(Direction::Minus) => -rate,
+            None => 0.0,
+        };
+        Rates {
+            ra_steps_per_s: self.sidereal + offset(self.ra, self.guide_ra),
+            dec_steps_per_s: offset(self.dec, self.guide_dec),
+        }
+    }
+}
+
+fn line_of(line: St4Line) -> Line {
+    match line {
+        St4Line::RaPlus => Line::RaPlus,
+        St4Line::RaMinus => Line::RaMinus,
+        St4Line::DecPlus => Line::DecPlus,
+        St4Line::DecMinus => Line::DecMinus,
+    }
+}
+
+fn axis_name(axis: Axis) -> &'static str {
+    match axis {
+        Axis::Ra => "RA",
+        Axis::Dec => "Dec",
+    }
+}
+
+/// The library's ST4 state machine, fed in time order.
+struct St4Feed {
+    st4: St4,
+    /// Latest time given to `st4` (edges and polls never go back).
+    last_us: u64,
+    /// Line levels as given to `st4`, for resynchronising after a lost edge.
+    levels: [bool; 4],
+    dropped_seen: u32,
+}
+
+impl St4Feed {
+    /// Feeds one edge: first the deadlines that fell before it, then the
+    /// edge. Events go to `on_event`.
+    fn edge(&mut self, edge: RawEdge, on_event: &mut impl FnMut(St4Event)) {
+        let at_us = edge.at_us.max(self.last_us);
+        self.poll(at_us, on_event);
+        self.st4.edge(line_of(edge.line), edge.asserted, at_us);
+        self.levels[edge.line as usize] = edge.asserted;
+    }
+
+    fn poll(&mut self, now_us: u64, on_event: &mut impl FnMut(St4Event)) {
+        let now_us = now_us.max(self.last_us);
+        self.last_us = now_us;
+        while let Some(ev) = self.st4.poll(now_us) {
+            on_event(ev);
+        }
+    }
+
+    /// After edges were lost to a full queue: feed the difference between
+    /// the levels the interrupt saw last and those `st4` has.
+    fn resync(&mut self, edges: &St4Edges, now_us: u64, on_event: &mut impl FnMut(St4Event)) {
+        let dropped = edges.dropped();
+        if dropped == self.dropped_seen {
+            return;
+        }
+        defmt::warn!(
+            "ST4: {} edges lost (input storm?), resynchronising",
+            dropped - self.dropped_seen
+        );
+        self.dropped_seen = dropped;
+        let levels = edges.levels();
+        for line in St4Line::ALL {
+            let asserted = levels[line as usize];
+            if asserted != self.levels[line as usize] {
+                let edge = RawEdge {
+                    line,
+                    asserted,
+                    at_us: now_us,
+                };
+                self.edge(edge, on_event);
+            }
+        }
+    }
+}
+
+fn log_event(ev: &St4Event) {
+    match *ev {
+        St4Event::PulseStart {
+            axis,
+            direction,
+            at_us,
+        } => defmt::info!(
+            "ST4 pulse start {} {} at {} us",
+            axis_name(axis),
+            match direction {
+                Direction::Plus => "+",
+                Direction::Minus => "-",
+            },
+            at_us
+        ),
+        St4Event::PulseEnd { axis, at_us } => {
+            defmt::info!("ST4 pulse end {} at {} us", axis_name(axis), at_us)
+        }
+    }
+}
+
+fn log_counters(c: St4Counters) {
+    defmt::info!(
+        "ST4 counters: glitches {}, both lines {}, capped {}, stuck {}, out of order {}, events dropped {}",
+        c.glitches,
+        c.both_lines,
+        c.capped,
+        c.stuck,
+        c.out_of_order,
+        c.dropped
+    );
+}
+
+/// Owns the ST4 logic and the guiding: edges and deadlines in, rates out.
+#[embassy_executor::task]
+async fn guiding_task(mut edges: St4Edges, mount: Mount) {
+    let config = *mount.config();
+    let mut feed = St4Feed {
+        st4: St4::new(config.glitch_us, config.pulse_cap_us),
+        last_us: 0,
+        levels: [false; 4],
+        dropped_seen: 0,
+    };
+    let mut guiding = DirectGuiding::new(&mount);
+    let rates = set_rates(&mount, guiding.rates(Instant::now().as_micros(), 0));
+    defmt::info!(
+        "tracking: RA {} steps/s, Dec {} steps/s",
+        rates.ra_steps_per_s,
+        rates.dec_steps_per_s
+    );
+    let mut next_update_us = Instant::now().as_micros() + RATE_UPDATE_US;
+    let mut last_counters = St4Counters::default();
+
+    loop {
+        let wake_us = feed
+            .st4
+            .next_deadline_us()
+            .map_or(next_update_us, |d| d.min(next_update_us));
+        let first = match select(edges.next(), Timer::at(Instant::from_micros(wake_us))).await {
+            Either::First(edge) => Some(edge),
+            Either::Second(()) => None,
+        };
+
+        // Every edge stamped before `now` is in the queue by now: the EXTI
+        // interrupt preempts this task, and it stamps and queues in one go.
+        let now_us = Instant::now().as_micros();
+        let mut changed = false;
+        let mut on_event = |ev: St4Event| {
+            log_event(&ev);
+            guiding.on_event(ev);
+            changed = true;
+        };
+        if let Some(edge) = first {
+            feed.edge(edge, &mut on_event);
+        }
+        while let Some(edge) = edges.try_next() {
+            feed.edge(edge, &mut on_event);
+        }
+        feed.resync(&edges, now_us, &mut on_event);
+        feed.poll(now_us, &mut on_event);
+        drop(on_event);
+        let counters = feed.st4.counters();
+        if changed || counters != last_counters {
+            log_counters(counters);
+            last_counters = counters;
+            ST4_COUNTERS.lock(|c| c.set(Some(counters)));
+        }
+
+        let now_us = now_us.max(feed.last_us);
+        if changed || now_us >= next_update_us {
+            let (ra_steps, _) = step_counts();
+            set_rates(&mount, guiding.rates(now_us, ra_steps));
+        }
+        if now_us >= next_update_us {
+            next_update_us += RATE_UPDATE_US;
+            if next_update_us <= now_us {
+                next_update_us = now_us + RATE_UPDATE_US;
+            }
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Start-up and thread mode
 
 #[embassy_executor::main]
 async fn main(_spawner: Spawner) {
     let p = hal::clocks::init();
+    interrupt::TIM5.set_priority(TIME_DRIVER_PRIORITY);
     let board = hal::take_board!(p);
     defmt::info!(
         "{} {} up, SYSCLK {} Hz",
@@ -34,12 +442,109 @@ async fn main(_spawner: Spawner) {
         Level::Low
     };
     let mut led = Output::new(board.led, off, Speed::Low);
+
+    // Drivers disabled (ENABLE high) until the configuration is known good.
+    let ra = StepAxis::new(board.ra, RA_DIR_FORWARD_HIGH);
+    let dec = StepAxis::new(board.dec, DEC_DIR_FORWARD_HIGH);
+
+    let running = start(p.TIM2, ra, dec, board.st4);
+    if running.is_err() {
+        defmt::error!("motors stay disabled; fix the configuration and reflash");
+    }
+
     let mut ticker = Ticker::every(HEARTBEAT);
     let mut beats: u32 = 0;
     loop {
         ticker.next().await;
         beats = beats.wrapping_add(1);
         led.toggle();
-        defmt::info!("heartbeat {}", beats);
+        if beats % STATUS_EVERY != 0 {
+            continue;
+        }
+        match running {
+            Ok(()) => log_status(),
+            Err(()) => defmt::error!("configuration refused at start-up; motors disabled"),
+        }
+    }
+}
+
+/// Validates the configuration, starts the step tick, enables the drivers
+/// and starts the guiding task. On a refused configuration: logs why and
+/// returns with the drivers disabled and nothing started.
+fn start(
+    tim: embassy_stm32::Peri<'static, hal::stepper::StepTimer>,
+    ra: StepAxis,
+    dec: StepAxis,
+    st4_pins: hal::board::St4Pins,
+) -> Result<(), ()> {
+    let config = MountConfig::default();
+    let mount = match config.validate() {
+        Ok(mount) => mount,
+        Err(e) => {
+            defmt::error!("mount configuration refused: {}", defmt::Display2Format(&e));
+            return Err(());
+        }
+    };
+    let ticker = match StepTicker::new(tim, config.step_tick_hz) {
+        Ok(t) => t,
+        Err(e) => {
+            defmt::error!("step tick: {}", e);
+            return Err(());
+        }
+    };
+    defmt::info!(
+        "mount: {} RA steps/worm turn, worm {} s, sidereal {} steps/s, {} arcsec/RA step, {} arcsec/Dec step, guide {}x, tick {} Hz",
+        config.ra_steps_per_worm_turn,
+        config.worm_period_s,
+        mount.sidereal_ra_steps_per_s(),
+        mount.arcsec_per_ra_step(),
+        mount.arcsec_per_dec_step(),
+        config.guide_rate_sidereal,
+        config.step_tick_hz
+    );
+
+    STEPPING.lock(|s| {
+        s.replace(Some(Stepping {
+            ticker,
+            ra,
+            dec,
+            ra_acc: PhaseAccumulator::new(),
+            dec_acc: PhaseAccumulator::new(),
+            ra_steps: 0,
+            dec_steps: 0,
+        }))
+    });
+    critical_section::with(|cs| {
+        if let Some(s) = STEPPING.borrow(cs).borrow_mut().as_mut() {
+            s.ticker.start();
+            s.ra.set_enabled(true);
+            s.dec.set_enabled(true);
+        }
+    });
+
+    let edges = hal::st4::start(st4_pins);
+    interrupt::SDIO.set_priority(EXECUTOR_HIGH_PRIORITY);
+    let spawner = EXECUTOR_HIGH.start(interrupt::SDIO);
+    match guiding_task(edges, mount) {
+        Ok(token) => spawner.spawn(token),
+        Err(_) => {
+            defmt::error!("guiding task could not be spawned");
+            return Err(());
+        }
+    }
+    Ok(())
+}
+
+fn log_status() {
+    let (ra_steps, dec_steps) = step_counts();
+    defmt::info!(
+        "status: RA {} steps at {} steps/s, Dec {} steps at {} steps/s",
+        ra_steps,
+        f32::from_bits(RA_RATE_BITS.load(Ordering::Relaxed)),
+        dec_steps,
+        f32::from_bits(DEC_RATE_BITS.load(Ordering::Relaxed)),
+    );
+    if let Some(c) = ST4_COUNTERS.lock(|c| c.get()) {
+        log_counters(c);
     }
 }
