@@ -33,28 +33,32 @@
 //!
 //! # Latency from an ST4 edge to the rate change
 //!
-//! The pulse start is confirmed `glitch_us` (1 ms) after the assert edge by
+//! A pulse start is confirmed `glitch_us` (1 ms) after the assert edge by
 //! design (debounce): [`St4`] reports it with the edge's own timestamp, and
-//! the guiding task wakes on the deadline. Measured from the moment the
-//! pulse is due (release edge, or the end of the glitch window), the chain
-//! is, on the slowest board (F411 at 96 MHz; the F446 and F407 are 1.75-1.9x
-//! faster):
+//! the guiding task wakes on that deadline. A release edge ends the pulse at
+//! once. From the moment the change is due (release edge, or end of the
+//! debounce window) to the new rate in the step generator, on the slowest
+//! board (F411 at 96 MHz; the F446 and F407 run 1.9x and 1.75x faster).
+//! Estimated from the instructions on the path (the release build's
+//! disassembly), not measured on hardware:
 //!
 //! | stage | worst case |
 //! |---|---|
-//! | EXTI interrupt (`P1`): stamp, read 4 pins, queue; or time-driver alarm (`P1`) | ~3 µs, plus up to one step tick (~2 µs) preempting it |
-//! | `SDIO` executor interrupt (`P2`) pended, task polled: `St4::edge`/`poll`, `on_event`, `rates` | ~10-20 µs (f32 arithmetic, a few hundred instructions) |
-//! | `set_rate` for both axes inside a critical section (f64 division in software) | ~5-10 µs |
-//! | new increment takes effect on the next tick | <= 20 µs (one tick at 50 kHz) |
+//! | EXTI interrupt (`P1`, `hal::st4`): stamp, clear, read 4 pins, queue; or the time driver's alarm (`P1`) for a deadline | ~5 µs |
+//! | preemption by the step tick meanwhile (`P0`, ~80 instructions with entry and exit) | ~1.5 µs per tick |
+//! | `SDIO` executor interrupt (`P2`): task polled, `St4::edge`/`poll`, `on_event`, `rates` (f32, a few hundred instructions) | ~10 µs |
+//! | `set_rate` on both axes, one critical section each (software `f64` division, ~600 cycles each) | ~13 µs |
+//! | the new increment takes effect on the next step tick | <= 20 µs |
 //!
-//! About **50 µs** end to end, or 0.004 % of a 1 s guide pulse: the pulse's
-//! length is reproduced to within 50 µs at both ends (and the ends shift
-//! together, so the length error is smaller). Thread mode (the model) cannot
-//! add to this: every stage above preempts it. What can: defmt logging
-//! from the guiding task (a critical section of a few µs per line) and other
-//! critical sections (embassy's, a few µs). The step tick itself is delayed
-//! by at most the longest critical section (the `set_rate` above, ~10 µs),
-//! less than a tick, so no tick is lost and STEP stays high >= 10 µs.
+//! About **50 µs** end to end: 0.005 % of a 1 s guide pulse, and both ends
+//! of a pulse shift alike, so its length is kept better than that. Thread
+//! mode, where the gear-error model runs, cannot add to this: every stage
+//! above preempts it. Logging is done after the rates are set. What can add:
+//! critical sections elsewhere (embassy's and defmt-rtt's, a few µs each).
+//! The step tick itself is held off by at most the longest critical section
+//! (one `set_rate`, ~6 µs), less than a tick, so no tick is lost and STEP
+//! stays high for at least ~14 µs (drivers need 1-2 µs). The tick costs
+//! ~1.5 µs of every 20 µs (about 7 % of the F411's CPU).
 #![no_std]
 #![no_main]
 
@@ -83,6 +87,8 @@ use mkgp_mount::stepgen::PhaseAccumulator;
 const HEARTBEAT: Duration = Duration::from_secs(1);
 /// Status log every this many heartbeats.
 const STATUS_EVERY: u32 = 10;
+/// Events logged per wake-up of the guiding task (the rest are counted).
+const LOG_EVENTS: usize = 4;
 /// The guiding task recomputes and sets the rates at least this often (µs).
 const RATE_UPDATE_US: u64 = 10_000;
 /// DIR level for forward (RA: tracking direction; Dec: north) steps. Flip if
@@ -143,26 +149,27 @@ static RA_RATE_BITS: AtomicU32 = AtomicU32::new(0);
 static DEC_RATE_BITS: AtomicU32 = AtomicU32::new(0);
 
 /// Sets both axes' rates (clamped to the mount's maxima); returns the rates
-/// actually set.
+/// actually set. One critical section per axis: `set_rate` costs about 600
+/// cycles (a software `f64` division), so each holds the step tick off for
+/// at most ~6 µs on the F411, well inside a 20 µs tick.
 fn set_rates(mount: &Mount, rates: Rates) -> Rates {
     let tick_hz = mount.config().step_tick_hz;
-    let set = critical_section::with(|cs| {
-        let mut stepping = STEPPING.borrow(cs).borrow_mut();
-        let s = stepping.as_mut()?;
-        Some(Rates {
-            ra_steps_per_s: s.ra_acc.set_rate(
-                rates.ra_steps_per_s,
-                mount.max_ra_steps_per_s(),
-                tick_hz,
-            ),
-            dec_steps_per_s: s.dec_acc.set_rate(
-                rates.dec_steps_per_s,
-                mount.max_dec_steps_per_s(),
-                tick_hz,
-            ),
+    let set = |rate: f32, max: f32, acc: fn(&mut Stepping) -> &mut PhaseAccumulator| {
+        critical_section::with(|cs| {
+            let mut stepping = STEPPING.borrow(cs).borrow_mut();
+            stepping
+                .as_mut()
+                .map_or(0.0, |s| acc(s).set_rate(rate, max, tick_hz))
         })
-    })
-    .unwrap_or_default();
+    };
+    let set = Rates {
+        ra_steps_per_s: set(rates.ra_steps_per_s, mount.max_ra_steps_per_s(), |s| {
+            &mut s.ra_acc
+        }),
+        dec_steps_per_s: set(rates.dec_steps_per_s, mount.max_dec_steps_per_s(), |s| {
+            &mut s.dec_acc
+        }),
+    };
     RA_RATE_BITS.store(set.ra_steps_per_s.to_bits(), Ordering::Relaxed);
     DEC_RATE_BITS.store(set.dec_steps_per_s.to_bits(), Ordering::Relaxed);
     set
@@ -384,11 +391,16 @@ async fn guiding_task(mut edges: St4Edges, mount: Mount) {
         // Every edge stamped before `now` is in the queue by now: the EXTI
         // interrupt preempts this task, and it stamps and queues in one go.
         let now_us = Instant::now().as_micros();
-        let mut changed = false;
+        // Events are applied at once and logged after the new rates are
+        // set, so that logging never delays a rate change.
+        let mut events = [None; LOG_EVENTS];
+        let mut n_events = 0usize;
         let mut on_event = |ev: St4Event| {
-            log_event(&ev);
             guiding.on_event(ev);
-            changed = true;
+            if let Some(slot) = events.get_mut(n_events) {
+                *slot = Some(ev);
+            }
+            n_events += 1;
         };
         if let Some(edge) = first {
             feed.edge(edge, &mut on_event);
@@ -398,18 +410,25 @@ async fn guiding_task(mut edges: St4Edges, mount: Mount) {
         }
         feed.resync(&edges, now_us, &mut on_event);
         feed.poll(now_us, &mut on_event);
-        drop(on_event);
-        let counters = feed.st4.counters();
-        if changed || counters != last_counters {
-            log_counters(counters);
-            last_counters = counters;
-            ST4_COUNTERS.lock(|c| c.set(Some(counters)));
-        }
+        let changed = n_events > 0;
 
         let now_us = now_us.max(feed.last_us);
         if changed || now_us >= next_update_us {
             let (ra_steps, _) = step_counts();
             set_rates(&mount, guiding.rates(now_us, ra_steps));
+        }
+
+        for ev in events.iter().flatten() {
+            log_event(ev);
+        }
+        if n_events > LOG_EVENTS {
+            defmt::info!("ST4: {} more events not logged", n_events - LOG_EVENTS);
+        }
+        let counters = feed.st4.counters();
+        if changed || counters != last_counters {
+            log_counters(counters);
+            last_counters = counters;
+            ST4_COUNTERS.lock(|c| c.set(Some(counters)));
         }
         if now_us >= next_update_us {
             next_update_us += RATE_UPDATE_US;
