@@ -27,9 +27,19 @@
 //!
 //! The seam for the controller (`mkgp_mount::controller`, `Guiding` and
 //! `Learner`) is [`DirectGuiding`]: it has `Guiding`'s `on_event` / `rates`
-//! shape and applies the guide rate while a pulse is active; replacing it by
-//! `Guiding` and adding the frame channel to a thread-mode `Learner` task is
-//! all that remains when the controller lands.
+//! shape and applies the guide rate while a pulse is active. When the
+//! controller lands:
+//!
+//! 1. `guiding_task` builds `Guiding::new(&mount)` instead (and uses its
+//!    `Rates`); after each rate update it moves `take_frame()`s into a
+//!    `Channel<CriticalSectionRawMutex, Frame, 4>` and installs the newest
+//!    feed-forward from a `Signal<CriticalSectionRawMutex, FeedForward>`
+//!    with `set_feed_forward`.
+//! 2. A thread-mode task owns the `Learner<2>` in a `static` (a
+//!    StaticCell-style slot as in target-tests' bench: ~55 KiB must not live
+//!    on a stack; the Learner is best initialised in place), awaits frames,
+//!    runs `learn` and signals the feed-forward; it logs learning %, each
+//!    stage's period and gate, the feed-forward and the counters per frame.
 //!
 //! # Latency from an ST4 edge to the rate change
 //!
