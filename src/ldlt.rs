@@ -77,7 +77,7 @@ impl<S: Scalar, const CAP: usize, const TRI: usize> Ldlt<S, CAP, TRI> {
                     let (r0, rest) = tail.split_at_mut(i + 1);
                     let (r1, rest) = rest.split_at_mut(i + 2);
                     let (r2, r3) = rest.split_at_mut(i + 3);
-                    let d = dot_rows([&r0[..j], &r1[..j], &r2[..j], &r3[..j]], lj);
+                    let d = S::dot_rows([&r0[..j], &r1[..j], &r2[..j], &r3[..j]], lj);
                     r0[j] -= d[0];
                     r1[j] -= d[1];
                     r2[j] -= d[2];
@@ -201,12 +201,13 @@ impl<S: Scalar, const CAP: usize, const TRI: usize> Default for Ldlt<S, CAP, TRI
 }
 
 /// Rows factored together (see [`Ldlt::factor`]).
-const BLOCK: usize = 4;
+pub const BLOCK: usize = 4;
 
 /// `BLOCK` dot products sharing their second operand: `rows[r] · c`, over
-/// the shortest of the slices.
+/// the shortest of the slices ([`Scalar::dot_rows`]: hand-scheduled for
+/// `f32` on the Cortex-M4F, this elsewhere).
 #[inline(always)]
-fn dot_rows<S: Scalar>(rows: [&[S]; BLOCK], c: &[S]) -> [S; BLOCK] {
+pub fn dot_rows_portable<S: Scalar>(rows: [&[S]; BLOCK], c: &[S]) -> [S; BLOCK] {
     let n = rows.iter().fold(c.len(), |n, r| n.min(r.len()));
     let mut acc = [S::ZERO; BLOCK];
     let mut k = 0;

@@ -19,3 +19,5 @@ pub mod scalar;
 pub mod spectrum;
 pub mod st4;
 pub mod stepgen;
+#[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
+pub mod vfp;

@@ -58,6 +58,11 @@ pub trait Scalar:
         }
     }
     fn is_finite(self) -> bool;
+    /// Four dot products against a shared vector (the factorisation's
+    /// inner loop): `rows[r] · c` over the shortest slice.
+    fn dot_rows(rows: [&[Self]; crate::ldlt::BLOCK], c: &[Self]) -> [Self; crate::ldlt::BLOCK] {
+        crate::ldlt::dot_rows_portable(rows, c)
+    }
     fn min(self, other: Self) -> Self {
         if other < self {
             other
@@ -160,5 +165,9 @@ impl Scalar for f32 {
     }
     fn is_finite(self) -> bool {
         f32::is_finite(self)
+    }
+    #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
+    fn dot_rows(rows: [&[Self]; crate::ldlt::BLOCK], c: &[Self]) -> [Self; crate::ldlt::BLOCK] {
+        crate::vfp::dot_rows(rows, c)
     }
 }

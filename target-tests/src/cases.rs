@@ -11,6 +11,7 @@ mod model_f32;
 mod scalar_f32;
 #[cfg(any(feature = "selfcheck-fail", feature = "selfcheck-hardfault"))]
 mod selfcheck;
+mod vfp;
 
 /// Every case, run in this order.
 #[cfg(not(any(feature = "selfcheck-fail", feature = "selfcheck-hardfault")))]
@@ -27,6 +28,7 @@ pub static CASES: &[Test] = &[
     case!(kernel_f32::kernel_f32_matches_f64),
     case!(instr_counter::measures_delay_loop),
     case!(instr_counter::longer_loop_measures_more),
+    case!(vfp::dot_rows_matches_portable),
     case!(model_f32::ldlt_known_solve),
     case!(model_f32::fft_pure_tone),
     case!(model_f32::spectrum_finds_the_period),
