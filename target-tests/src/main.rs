@@ -19,28 +19,16 @@
 mod cases;
 mod harness;
 pub mod instr;
+mod support;
 
 use cortex_m_rt::{entry, exception, ExceptionFrame};
-use cortex_m_semihosting::{debug, hprintln};
+use cortex_m_semihosting::hprintln;
+pub use support::exit;
 
 #[entry]
 fn main() -> ! {
     let failed = harness::run(cases::CASES);
     exit(failed == 0)
-}
-
-/// Ends the QEMU run with status 0 (`success`) or 1.
-pub fn exit(success: bool) -> ! {
-    debug::exit(if success {
-        debug::EXIT_SUCCESS
-    } else {
-        debug::EXIT_FAILURE
-    });
-    // Only reached without a semihosting host (e.g. on real hardware with no
-    // debugger attached).
-    loop {
-        cortex_m::asm::bkpt();
-    }
 }
 
 #[panic_handler]

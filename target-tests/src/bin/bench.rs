@@ -28,15 +28,15 @@
 
 #[path = "../instr.rs"]
 mod instr;
+#[path = "../support.rs"]
+mod support;
 
-use core::cell::UnsafeCell;
 use core::f64::consts::PI;
 use core::hint::black_box;
-use core::mem::MaybeUninit;
-use core::sync::atomic::{AtomicBool, Ordering};
 use cortex_m_rt::{entry, exception, ExceptionFrame};
-use cortex_m_semihosting::{debug, hprintln};
+use cortex_m_semihosting::hprintln;
 use mkgp_mount::guider::{Guider, GuiderConfig};
+use support::{exit, Slot};
 
 /// Time between frames (s).
 const DT: f64 = 2.0;
@@ -107,35 +107,6 @@ impl Gaussian {
     }
 }
 
-/// Static storage for one value, handed out once (a minimal `StaticCell`):
-/// the guiders are too large to keep on the stack comfortably and there is
-/// no heap.
-struct Slot<T> {
-    taken: AtomicBool,
-    value: UnsafeCell<MaybeUninit<T>>,
-}
-
-// SAFETY: the value is reachable only through the one `&mut` that `init`
-// hands out.
-unsafe impl<T> Sync for Slot<T> {}
-
-impl<T> Slot<T> {
-    const fn new() -> Self {
-        Slot {
-            taken: AtomicBool::new(false),
-            value: UnsafeCell::new(MaybeUninit::uninit()),
-        }
-    }
-
-    // The `StaticCell` pattern: `taken` makes the `&mut` unique.
-    #[allow(clippy::mut_from_ref)]
-    fn init(&'static self, value: T) -> &'static mut T {
-        assert!(!self.taken.swap(true, Ordering::SeqCst), "Slot used twice");
-        // SAFETY: first and only use (checked above).
-        unsafe { (*self.value.get()).write(value) }
-    }
-}
-
 // mps2-an386 has 4 MiB of data RAM: both guiders fit side by side.
 static GUIDER_1: Slot<Guider<f32, 1>> = Slot::new();
 static GUIDER_2: Slot<Guider<f32, 2>> = Slot::new();
@@ -190,18 +161,6 @@ fn main() -> ! {
     run(GUIDER_1.init(Guider::new(GuiderConfig::default())), counts);
     run(GUIDER_2.init(Guider::new(GuiderConfig::default())), counts);
     exit(true)
-}
-
-/// Ends the QEMU run with status 0 (`success`) or 1.
-fn exit(success: bool) -> ! {
-    debug::exit(if success {
-        debug::EXIT_SUCCESS
-    } else {
-        debug::EXIT_FAILURE
-    });
-    loop {
-        cortex_m::asm::bkpt();
-    }
 }
 
 #[panic_handler]

@@ -14,28 +14,18 @@
 #![no_main]
 #[path = "../instr.rs"]
 mod instr;
-use core::cell::UnsafeCell;
+#[path = "../support.rs"]
+mod support;
 use core::hint::black_box;
-use core::mem::MaybeUninit;
 use cortex_m_rt::{entry, exception, ExceptionFrame};
-use cortex_m_semihosting::{debug, hprintln};
+use cortex_m_semihosting::hprintln;
 use mkgp_mount::fft::FFT_LEN;
 use mkgp_mount::gp::Gp;
 use mkgp_mount::grid::Grid;
 use mkgp_mount::kernel::Kernel;
 use mkgp_mount::spectrum::Spectrum;
+use support::{exit, Slot};
 
-struct Slot<T>(UnsafeCell<MaybeUninit<T>>);
-unsafe impl<T> Sync for Slot<T> {}
-impl<T> Slot<T> {
-    const fn new() -> Self {
-        Slot(UnsafeCell::new(MaybeUninit::uninit()))
-    }
-    #[allow(clippy::mut_from_ref)]
-    fn init(&'static self, v: T) -> &'static mut T {
-        unsafe { (*self.0.get()).write(v) }
-    }
-}
 static GRID: Slot<Grid<f32>> = Slot::new();
 static GP: Slot<Gp<f32>> = Slot::new();
 static BUF: Slot<[f32; FFT_LEN]> = Slot::new();
@@ -122,17 +112,14 @@ fn main() -> ! {
     l.solve(&mut v);
     let c = instr::elapsed_instructions();
     hprintln!("ldlt factor 100: {} ({:?}); solve {}", b - a, r, c - b);
-    debug::exit(debug::EXIT_SUCCESS);
-    loop {}
+    exit(true)
 }
 
 #[exception]
 unsafe fn HardFault(_ef: &ExceptionFrame) -> ! {
-    debug::exit(debug::EXIT_FAILURE);
-    loop {}
+    exit(false)
 }
 #[panic_handler]
 fn panic(_: &core::panic::PanicInfo) -> ! {
-    debug::exit(debug::EXIT_FAILURE);
-    loop {}
+    exit(false)
 }

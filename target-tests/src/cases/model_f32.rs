@@ -6,10 +6,8 @@
 //! `f64` (soft-float here) outside the guider.
 
 use crate::harness::{check, close_abs, TestResult};
-use core::cell::UnsafeCell;
+use crate::support::Slot;
 use core::f64::consts::PI;
-use core::mem::MaybeUninit;
-use core::sync::atomic::{AtomicBool, Ordering};
 use cortex_m_semihosting::hprintln;
 use mkgp_mount::fft::{power_spectrum, FFT_LEN};
 use mkgp_mount::grid::Grid;
@@ -31,33 +29,6 @@ fn abs(x: f64) -> f64 {
         -x
     } else {
         x
-    }
-}
-
-/// Static storage for one value, handed out once: the guiders, the grid and
-/// the spectrum buffer are too large for the stack to hold comfortably.
-struct Slot<T> {
-    taken: AtomicBool,
-    value: UnsafeCell<MaybeUninit<T>>,
-}
-
-// SAFETY: the value is reachable only through the one `&mut` that `init`
-// hands out.
-unsafe impl<T> Sync for Slot<T> {}
-
-impl<T> Slot<T> {
-    const fn new() -> Self {
-        Slot {
-            taken: AtomicBool::new(false),
-            value: UnsafeCell::new(MaybeUninit::uninit()),
-        }
-    }
-
-    #[allow(clippy::mut_from_ref)]
-    fn init(&'static self, value: T) -> &'static mut T {
-        assert!(!self.taken.swap(true, Ordering::SeqCst), "Slot used twice");
-        // SAFETY: first and only use (checked above).
-        unsafe { (*self.value.get()).write(value) }
     }
 }
 
