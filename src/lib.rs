@@ -6,6 +6,7 @@
 #![no_std]
 
 pub mod approx;
+pub mod controller;
 pub mod discovery;
 pub mod fft;
 pub mod gp;
