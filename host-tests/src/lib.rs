@@ -16,6 +16,7 @@ pub mod models;
 pub mod noise;
 pub mod phd2_log;
 pub mod replay;
+pub mod st4_sim;
 pub mod svg;
 pub mod table;
 

@@ -4,6 +4,7 @@
 //! guide-sim table [--cases FILE] [--csv]
 //! guide-sim replay [LOG...] [--csv]
 //! guide-sim bench [--csv] [--host-only]
+//! guide-sim st4 [--case ID] [--cases FILE] [--noise PX] [--csv]
 //! ```
 //! Arguments are parsed by hand: two subcommands with one flag and one
 //! option each do not justify a dependency.
@@ -15,6 +16,7 @@ use host_tests::data::{self, Error};
 use host_tests::models::{self, Model};
 use host_tests::phd2_log::{self, GuideLog};
 use host_tests::replay::{self, ReplayResult};
+use host_tests::st4_sim;
 use host_tests::{svg, table};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -25,6 +27,7 @@ const USAGE: &str = "\
 usage: guide-sim table [--cases FILE] [--csv]
        guide-sim replay [LOG...] [--csv]
        guide-sim bench [--csv] [--host-only]
+       guide-sim st4 [--case ID] [--cases FILE] [--noise PX] [--csv]
 
 table   residual RMS (px, t >= 3600 s) of the synthetic cases for the open loop,
         reactive (hysteresis 0.6), ppec (GP, 1 stage) and mkgp (GP, 2 stages),
@@ -39,6 +42,13 @@ bench   cost of one guide frame of the GP guider in the closed loop on case C8
         instructions per frame on an emulated Cortex-M4 (median, max; QEMU runs
         target-tests' bench binary, about a minute) and the bytes of model
         state. --host-only skips QEMU. Takes no files but the cases file.
+st4     the firmware's closed loop: a virtual mount whose RA error is a synthetic
+        case, a camera exposing every 2 s, a PHD2-like hysteresis guider (0.7, 0.1,
+        min move 0.2) sending ST4 pulses at 0.5x sidereal through the firmware's
+        St4 and Guiding; guider only, guider + firmware PPEC (Learner<1>) and
+        guider + firmware MKGP (Learner<2>). Pointing RMS (arcsec = px) over
+        t >= 3600 s of 3 h runs; noise 0 and 1 px (seeds 1-3, mean) unless
+        --noise PX picks one level; --case ID runs one case.
 
 The shared data is found at $MKGP_SHARED (the shared/ directory or its data/),
 else at <repo>/../shared/data.";
@@ -65,6 +75,7 @@ fn main() -> ExitCode {
         "table" => cmd_table(rest),
         "replay" => cmd_replay(rest),
         "bench" => cmd_bench(rest),
+        "st4" => cmd_st4(rest),
         "-h" | "--help" | "help" => {
             println!("{USAGE}");
             ExitCode::SUCCESS
@@ -413,4 +424,84 @@ fn print_bench(rows: &[BenchRow]) {
             met(r.state_bytes <= bench::STATE_GOAL_BYTES)
         );
     }
+}
+
+fn cmd_st4(args: &[String]) -> ExitCode {
+    let mut csv = false;
+    let mut cases_path: Option<PathBuf> = None;
+    let mut case_id: Option<String> = None;
+    let mut noise: Option<f64> = None;
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--csv" => csv = true,
+            "--cases" => match it.next() {
+                Some(p) => cases_path = Some(PathBuf::from(p)),
+                None => return usage_error("--cases needs a FILE"),
+            },
+            "--case" => match it.next() {
+                Some(c) => case_id = Some(c.clone()),
+                None => return usage_error("--case needs an ID"),
+            },
+            "--noise" => match it.next().map(|s| s.parse::<f64>()) {
+                Some(Ok(x)) if x.is_finite() && x >= 0.0 => noise = Some(x),
+                _ => return usage_error("--noise needs a number of px >= 0"),
+            },
+            "-h" | "--help" => {
+                println!("{USAGE}");
+                return ExitCode::SUCCESS;
+            }
+            other => return usage_error(&format!("st4: unexpected argument {other:?}")),
+        }
+    }
+    let path = cases_path.unwrap_or_else(data::cases_file);
+    let mut cases = match cases::load(&path) {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("guide-sim: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    if let Some(id) = case_id {
+        cases.retain(|c| c.name == id);
+        if cases.is_empty() {
+            eprintln!("guide-sim: {}: no case {id}", path.display());
+            return ExitCode::FAILURE;
+        }
+    }
+    let levels = match noise {
+        Some(x) => vec![x],
+        None => vec![0.0, 1.0],
+    };
+    let rows = st4_sim::table(&cases, &levels, threads());
+    if csv {
+        println!("{}", st4_sim::CSV_HEADER);
+        for r in &rows {
+            println!(
+                "{},{},{:.3},{:.3},{:.3}",
+                r.case, r.noise_px, r.guider_only, r.fw_ppec, r.fw_mkgp
+            );
+        }
+        return ExitCode::SUCCESS;
+    }
+    println!(
+        "Firmware closed loop: pointing RMS (arcsec = px) over t >= 3600 s of 3 h; noisy rows: mean of seeds 1-3"
+    );
+    println!(
+        "{:<6} {:>8} {:>12} {:>9} {:>9} {:>10} {:>10}",
+        "case", "noise_px", "guider_only", "fw_ppec", "fw_mkgp", "ppec/only", "mkgp/only"
+    );
+    for r in &rows {
+        println!(
+            "{:<6} {:>8} {:>12.3} {:>9.3} {:>9.3} {:>10.3} {:>10.3}",
+            r.case,
+            r.noise_px,
+            r.guider_only,
+            r.fw_ppec,
+            r.fw_mkgp,
+            r.fw_ppec / r.guider_only,
+            r.fw_mkgp / r.guider_only
+        );
+    }
+    ExitCode::SUCCESS
 }
