@@ -130,11 +130,15 @@ impl<S: Scalar> Gp<S> {
         let y_ref = grid.cell(self.cells[0] as usize).0;
         let inv_tau = S::from_f64(1.0 / TREND_TIME_S);
         let centre_s = S::from_f64(centre);
+        // Cell times as in `select`: the oldest's plus a multiple of 5 s,
+        // exact in S (no f64 per member).
+        let t_oldest = S::from_f64(grid.cell_time(0));
         for i in 0..n {
             let c = self.cells[i] as usize;
             self.weights[i] = grid.cell(c).0 - y_ref;
             self.s0[i] = S::ONE;
-            self.s1[i] = (S::from_f64(grid.cell_time(c)) - centre_s) * inv_tau;
+            let t_c = t_oldest + S::from_usize(c) * cell;
+            self.s1[i] = (t_c - centre_s) * inv_tau;
         }
         // t' of each member is needed again after the solves.
         let mut t = [S::ZERO; SUBSET];
@@ -217,11 +221,18 @@ impl<S: Scalar> Gp<S> {
         // that the root is the weakest member: lowest covariance, and of
         // equals the newest cell.
         let centre_s = S::from_f64(centre);
+        // Cell times in S, stepping 5 s from the oldest: exact (multiples of
+        // 2.5 s; in f32 up to 2^23 s), so each equals
+        // `S::from_f64(grid.cell_time(j))` bit for bit without the software
+        // f64 arithmetic per cell on the target.
+        let step = S::from_f64(CELL_S);
+        let mut t_j = S::from_f64(grid.cell_time(0));
         let weaker = |cov: &[S], cells: &[u16], a: usize, b: usize| {
             cov[a] < cov[b] || (cov[a] == cov[b] && cells[a] > cells[b])
         };
         for j in 0..total {
-            let c = kernel.full(centre_s - S::from_f64(grid.cell_time(j)));
+            let c = kernel.full(centre_s - t_j);
+            t_j += step;
             // NaN never enters: `c > root` is false for NaN.
             if j < k {
                 self.cov[j] = c;
