@@ -1,5 +1,6 @@
 //! Firmware entry point: boots the board, validates the mount configuration,
-//! then tracks at the sidereal rate and obeys ST4 guide pulses.
+//! then tracks at the sidereal rate, obeys ST4 guide pulses and learns the
+//! gear error, whose predicted rate it adds to the RA rate (feed-forward).
 //!
 //! # Structure
 //!
@@ -17,29 +18,37 @@
 //!   timestamped in its interrupt and queued.
 //! - **Guiding task** ([`guiding_task`], on [`EXECUTOR_HIGH`], an
 //!   `InterruptExecutor` on the otherwise unused `SDIO` vector at `P2`): owns
-//!   the library's [`St4`] and the guiding logic; feeds it the edges, calls
-//!   `poll` at `next_deadline_us()`, turns events into rates and sets them
-//!   on the accumulators, on every event and every [`RATE_UPDATE_US`].
-//! - **Thread mode** (lowest): the status log and LED. The gear-error model
-//!   (the controller's `Learner`) will run here too, so inference, which
-//!   takes milliseconds, is preempted by everything above and never delays a
-//!   pulse or a step.
+//!   the library's [`St4`] and the controller's fast part, [`Guiding`];
+//!   feeds the edges to `St4`, calls `poll` at `next_deadline_us()`, passes
+//!   the events to `Guiding::on_event`, installs the newest feed-forward
+//!   from [`FEED_FORWARD`] (`Guiding::set_feed_forward`), and on every event
+//!   and every [`RATE_UPDATE_US`] sets `Guiding::rates(now, RA steps)` on the
+//!   accumulators. Then (after the rates) it moves the completed guide
+//!   frames (`Guiding::take_frame`) into [`FRAMES`] and logs the ST4 events.
+//! - **Thread mode** (lowest): the learning task ([`learning_task`]) owns the
+//!   model, a `Learner<2>` in the static [`LEARNER`]; per frame it runs
+//!   `Learner::learn` (about 1.5 M instructions, 20-30 ms on the F411),
+//!   signals the feed-forward to the guiding task and logs the frame, the
+//!   learning %, each stage's period and gate, the feed-forward and the
+//!   counters. The status log and LED run here too. Everything above
+//!   preempts this, so the model never delays a pulse or a step; a new
+//!   feed-forward takes effect at the guiding task's next wake-up (within
+//!   [`RATE_UPDATE_US`]).
 //!
-//! The seam for the controller (`mkgp_mount::controller`, `Guiding` and
-//! `Learner`) is [`DirectGuiding`]: it has `Guiding`'s `on_event` / `rates`
-//! shape and applies the guide rate while a pulse is active. When the
-//! controller lands:
+//! # Memory
 //!
-//! 1. `guiding_task` builds `Guiding::new(&mount)` instead (and uses its
-//!    `Rates`); after each rate update it moves `take_frame()`s into a
-//!    `Channel<CriticalSectionRawMutex, Frame, 4>` and installs the newest
-//!    feed-forward from a `Signal<CriticalSectionRawMutex, FeedForward>`
-//!    with `set_feed_forward`.
-//! 2. A thread-mode task owns the `Learner<2>` in a `static` (a
-//!    StaticCell-style slot as in target-tests' bench: ~55 KiB must not live
-//!    on a stack; the Learner is best initialised in place), awaits frames,
-//!    runs `learn` and signals the feed-forward; it logs learning %, each
-//!    stage's period and gate, the feed-forward and the counters per frame.
+//! The model's state (~55 KiB) is in the static [`LEARNER`] (`.bss`), built
+//! once at start-up by [`make_learner`]. `Learner::new` returns it by value,
+//! and with Rust 1.95 at opt-level 3 LLVM builds most of it (grid, scratch,
+//! GP state) in a temporary on the stack and copies it: `make_learner`'s
+//! frame is 54,992 B (the `sub sp` in the release disassembly). On the F411
+//! the static RAM is 59,208 B, so at that moment RAM holds 59,208 + 54,992
+//! B + the callers' frames (under 1 KiB) = about 113 KiB of 128 KiB: it
+//! fits, with about 15 KiB to spare. After start-up the deepest stack is a
+//! few KiB (`learn`, plus the nested interrupts). The stack has no guard (no
+//! flip-link): if the model's state grows by more than about 7 KiB (it
+//! counts twice here), look at `make_learner`'s frame again; the way out is
+//! an in-place constructor down to the grid and the GP state.
 //!
 //! # Latency from an ST4 edge to the rate change
 //!
@@ -50,25 +59,28 @@
 //! debounce window) to the new rate in the step generator, on the slowest
 //! board (F411 at 96 MHz; the F446 and F407 run 1.9x and 1.75x faster).
 //! Estimated from the instructions on the path (the release build's
-//! disassembly), not measured on hardware:
+//! disassembly, and `Guiding`'s calls counted in QEMU), not measured on
+//! hardware:
 //!
 //! | stage | worst case |
 //! |---|---|
 //! | EXTI interrupt (`P1`, `hal::st4`): stamp, clear, read 4 pins, queue; or the time driver's alarm (`P1`) for a deadline | ~5 µs |
-//! | preemption by the step tick meanwhile (`P0`, ~80 instructions with entry and exit) | ~1.5 µs per tick |
-//! | `SDIO` executor interrupt (`P2`): task polled, `St4::edge`/`poll`, `on_event`, `rates` (f32, a few hundred instructions) | ~10 µs |
+//! | preemption by the step tick meanwhile (`P0`, ~80 instructions with entry and exit) | ~1.5 µs per tick, ~6 µs in all |
+//! | `SDIO` executor interrupt (`P2`): task polled, `St4::edge`/`poll`, `FEED_FORWARD.try_take`, `Guiding::on_event` + `Guiding::rates` (software `f64`: ~3,200 instructions) | ~45 µs |
 //! | `set_rate` on both axes, one critical section each (software `f64` division, ~600 cycles each) | ~13 µs |
 //! | the new increment takes effect on the next step tick | <= 20 µs |
 //!
-//! About **50 µs** end to end: 0.005 % of a 1 s guide pulse, and both ends
+//! About **90 µs** end to end: 0.009 % of a 1 s guide pulse, and both ends
 //! of a pulse shift alike, so its length is kept better than that. Thread
 //! mode, where the gear-error model runs, cannot add to this: every stage
-//! above preempts it. Logging is done after the rates are set. What can add:
-//! critical sections elsewhere (embassy's and defmt-rtt's, a few µs each).
-//! The step tick itself is held off by at most the longest critical section
-//! (one `set_rate`, ~6 µs), less than a tick, so no tick is lost and STEP
-//! stays high for at least ~14 µs (drivers need 1-2 µs). The tick costs
-//! ~1.5 µs of every 20 µs (about 7 % of the F411's CPU).
+//! above preempts it. Frames are handed on and events logged after the
+//! rates are set. What can add: critical sections elsewhere (embassy's, and
+//! defmt-rtt's, which holds one while it encodes a log line: the lines are
+//! kept to at most six values, roughly 10 µs each). The step tick itself is
+//! held off by at most the longest critical section (a log line, or one
+//! `set_rate`, ~6 µs), less than a tick, so no tick is lost and STEP stays
+//! high for at least ~10 µs (drivers need 1-2 µs). The tick costs ~1.5 µs
+//! of every 20 µs (about 7 % of the F411's CPU), the rate updates ~0.5 %.
 #![no_std]
 #![no_main]
 
@@ -85,10 +97,16 @@ use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
+use embassy_sync::channel::Channel;
+use embassy_sync::signal::Signal;
 use embassy_time::{Duration, Instant, Ticker, Timer};
+use static_cell::StaticCell;
 
 use hal::st4::{RawEdge, St4Edges, St4Line};
 use hal::stepper::{StepAxis, StepTicker};
+use mkgp_mount::controller::{
+    FeedForward, Frame, FrameKind, Guiding, GuidingCounters, Learner, Rates, FRAME_QUEUE,
+};
 use mkgp_mount::mount::{Mount, MountConfig};
 use mkgp_mount::st4::{Axis, Direction, Line, St4, St4Counters, St4Event};
 use mkgp_mount::stepgen::PhaseAccumulator;
@@ -110,6 +128,8 @@ const DEC_DIR_FORWARD_HIGH: bool = true;
 const EXECUTOR_HIGH_PRIORITY: Priority = Priority::P2;
 /// NVIC priority of embassy's time driver (TIM5); `P0` is the step tick's.
 const TIME_DRIVER_PRIORITY: Priority = Priority::P1;
+/// Periodic stages of the gear-error model: the worm and one more (MKGP).
+const STAGES: usize = 2;
 
 // ---------------------------------------------------------------------------
 // Step tick
@@ -145,13 +165,6 @@ fn TIM2() {
             s.dec_steps += i64::from(s.dec.tick(due));
         }
     });
-}
-
-/// Rates for the two axes, steps per second, signed.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-struct Rates {
-    ra_steps_per_s: f32,
-    dec_steps_per_s: f32,
 }
 
 /// The rates last set (f32 bits), for the status log.
@@ -213,56 +226,24 @@ unsafe fn SDIO() {
 static ST4_COUNTERS: Mutex<CriticalSectionRawMutex, Cell<Option<St4Counters>>> =
     Mutex::new(Cell::new(None));
 
-/// The controller seam: tracking at the sidereal rate on RA, plus the guide
-/// rate on an axis while a guide pulse on it is active. Same shape as
-/// `mkgp_mount::controller::Guiding` (`on_event`, `rates`), which replaces
-/// it when it lands and adds the feed-forward from the learned gear error.
-struct DirectGuiding {
-    sidereal: f32,
-    guide_ra: f32,
-    guide_dec: f32,
-    ra: Option<Direction>,
-    dec: Option<Direction>,
+/// A completed guide frame for the learner, with the guiding task's counters
+/// when it was sent (logged with the frame).
+#[derive(Clone, Copy)]
+struct FrameMsg {
+    frame: Frame,
+    st4: St4Counters,
+    guiding: GuidingCounters,
 }
 
-impl DirectGuiding {
-    fn new(mount: &Mount) -> Self {
-        Self {
-            sidereal: mount.sidereal_ra_steps_per_s(),
-            guide_ra: mount.guide_ra_steps_per_s(),
-            guide_dec: mount.guide_dec_steps_per_s(),
-            ra: None,
-            dec: None,
-        }
-    }
+/// Guide frames, from the guiding task to the learning task. Frames are only
+/// taken from `Guiding` while there is room here, so a learner that falls
+/// behind loses the oldest of `Guiding`'s own queue, counted in
+/// `GuidingCounters::frames_dropped`.
+static FRAMES: Channel<CriticalSectionRawMutex, FrameMsg, FRAME_QUEUE> = Channel::new();
 
-    fn on_event(&mut self, ev: St4Event) {
-        match ev {
-            St4Event::PulseStart {
-                axis, direction, ..
-            } => match axis {
-                Axis::Ra => self.ra = Some(direction),
-                Axis::Dec => self.dec = Some(direction),
-            },
-            St4Event::PulseEnd { axis, .. } => match axis {
-                Axis::Ra => self.ra = None,
-                Axis::Dec => self.dec = None,
-            },
-        }
-    }
-
-    fn rates(&mut self, _now_us: u64, _ra_steps: i64) -> Rates {
-        let offset = |d: Option<Direction>, rate: f32| match d {
-            Some(Direction::Plus) => rate,
-            Some(Direction::Minus) => -rate,
-            None => 0.0,
-        };
-        Rates {
-            ra_steps_per_s: self.sidereal + offset(self.ra, self.guide_ra),
-            dec_steps_per_s: offset(self.dec, self.guide_dec),
-        }
-    }
-}
+/// The newest feed-forward, from the learning task to the guiding task (an
+/// older one not yet installed is replaced).
+static FEED_FORWARD: Signal<CriticalSectionRawMutex, FeedForward> = Signal::new();
 
 fn line_of(line: St4Line) -> Line {
     match line {
@@ -378,8 +359,9 @@ async fn guiding_task(mut edges: St4Edges, mount: Mount) {
         levels: [false; 4],
         dropped_seen: 0,
     };
-    let mut guiding = DirectGuiding::new(&mount);
-    let rates = set_rates(&mount, guiding.rates(Instant::now().as_micros(), 0));
+    let mut guiding = Guiding::new(&mount);
+    let (ra_steps, _) = step_counts();
+    let rates = set_rates(&mount, guiding.rates(Instant::now().as_micros(), ra_steps));
     defmt::info!(
         "tracking: RA {} steps/s, Dec {} steps/s",
         rates.ra_steps_per_s,
@@ -421,11 +403,29 @@ async fn guiding_task(mut edges: St4Edges, mount: Mount) {
         feed.resync(&edges, now_us, &mut on_event);
         feed.poll(now_us, &mut on_event);
         let changed = n_events > 0;
+        let feed_forward = FEED_FORWARD.try_take();
+        if let Some(ff) = feed_forward {
+            guiding.set_feed_forward(ff);
+        }
 
         let now_us = now_us.max(feed.last_us);
-        if changed || now_us >= next_update_us {
+        if changed || feed_forward.is_some() || now_us >= next_update_us {
             let (ra_steps, _) = step_counts();
             set_rates(&mount, guiding.rates(now_us, ra_steps));
+        }
+
+        // Completed frames to the learner, after the rates are set.
+        while !FRAMES.is_full() {
+            let Some(frame) = guiding.take_frame() else {
+                break;
+            };
+            let msg = FrameMsg {
+                frame,
+                st4: feed.st4.counters(),
+                guiding: guiding.counters(),
+            };
+            // Cannot fail: there is room, and this task is the only sender.
+            let _ = FRAMES.try_send(msg);
         }
 
         for ev in events.iter().flatten() {
@@ -450,10 +450,115 @@ async fn guiding_task(mut edges: St4Edges, mount: Mount) {
 }
 
 // ---------------------------------------------------------------------------
+// Learning (thread mode, lowest priority)
+
+/// The model's storage (~55 KiB): a static, handed out once.
+static LEARNER: StaticCell<Learner<STAGES>> = StaticCell::new();
+
+/// Builds the model in [`LEARNER`]. Not inlined, so that its stack frame is
+/// its own: `Learner::new`'s value is built in the static (small frame, see
+/// the module doc), not in a temporary on the stack.
+#[inline(never)]
+fn make_learner(mount: &Mount) -> Option<&'static mut Learner<STAGES>> {
+    LEARNER.try_init_with(|| Learner::new(mount))
+}
+
+/// Runs the model once per guide frame (about 20-30 ms on the F411, the
+/// longest thing that runs here) and hands the feed-forward to the guiding
+/// task. Everything else preempts it.
+#[embassy_executor::task]
+async fn learning_task(learner: &'static mut Learner<STAGES>) {
+    loop {
+        let msg = FRAMES.receive().await;
+        let ff = learner.learn(msg.frame);
+        FEED_FORWARD.signal(ff);
+        log_frame(learner, &msg, &ff);
+    }
+}
+
+/// The per-frame log. defmt-rtt holds a critical section while it encodes a
+/// line (the step tick waits meanwhile), so the lines are kept short.
+fn log_frame(learner: &Learner<STAGES>, msg: &FrameMsg, ff: &FeedForward) {
+    let f = &msg.frame;
+    let model = learner.guider();
+    let kind = match f.kind {
+        FrameKind::Measured if f.filled => "filled",
+        FrameKind::Measured => "measured",
+        FrameKind::Unmeasured => "unmeasured",
+        FrameKind::Dither { .. } => "dither",
+    };
+    defmt::info!(
+        "frame {} at gear {} s: gear error {} arcsec (pulse {} arcsec)",
+        kind,
+        f.gear_time_s,
+        f.gear_error_arcsec,
+        f.pulse_arcsec
+    );
+    defmt::info!(
+        "model: learning {} %, blend {}, feed-forward {} arcsec/s",
+        (model.learning_progress() * 100.0) as f32,
+        model.blend_weight() as f32,
+        ff.rate_arcsec_per_s
+    );
+    for stage in 0..STAGES {
+        defmt::info!(
+            "model stage {}: period {} s, gate {}",
+            stage,
+            model.period_s(stage) as f32,
+            model.gate(stage) as f32
+        );
+    }
+    let l = learner.counters();
+    let m = model.faults();
+    defmt::info!(
+        "model counters: frames {}, learned {}, not learned {}, dithers {}",
+        l.frames,
+        l.learned,
+        l.not_learned,
+        l.dithers
+    );
+    defmt::info!(
+        "model faults: bad time {}, bad input {}, inference {}, grid restarts {}, bad dithers {}",
+        m.bad_time,
+        m.bad_input,
+        m.inference_failures,
+        m.grid_restarts,
+        m.bad_dithers
+    );
+    let g = &msg.guiding;
+    defmt::info!(
+        "guiding: pulses RA {} Dec {}, frames {} (filled {}, unmeasured {}, dropped {})",
+        g.ra_pulses,
+        g.dec_pulses,
+        g.frames,
+        g.filled_frames,
+        g.unmeasured_frames,
+        g.frames_dropped
+    );
+    defmt::info!(
+        "guiding: dithers {}, silences {}, stray ends {}, time backwards {}, clamped RA {} Dec {}",
+        g.dithers,
+        g.silences,
+        g.stray_ends,
+        g.time_backwards,
+        g.ra_clamped,
+        g.dec_clamped
+    );
+    defmt::info!(
+        "feed-forward: rejected {}, limited {}, expired {}, faded {}",
+        g.feed_forward_rejected,
+        g.feed_forward_limited,
+        g.feed_forward_expired,
+        g.feed_forward_faded
+    );
+    log_counters(msg.st4);
+}
+
+// ---------------------------------------------------------------------------
 // Start-up and thread mode
 
 #[embassy_executor::main]
-async fn main(_spawner: Spawner) {
+async fn main(spawner: Spawner) {
     let p = hal::clocks::init();
     interrupt::TIM5.set_priority(TIME_DRIVER_PRIORITY);
     let board = hal::take_board!(p);
@@ -476,7 +581,7 @@ async fn main(_spawner: Spawner) {
     let ra = StepAxis::new(board.ra, RA_DIR_FORWARD_HIGH);
     let dec = StepAxis::new(board.dec, DEC_DIR_FORWARD_HIGH);
 
-    let running = start(p.TIM2, ra, dec, board.st4);
+    let running = start(spawner, p.TIM2, ra, dec, board.st4);
     if running.is_err() {
         defmt::error!("motors stay disabled; fix the configuration and reflash");
     }
@@ -497,10 +602,12 @@ async fn main(_spawner: Spawner) {
     }
 }
 
-/// Validates the configuration, starts the step tick, enables the drivers
-/// and starts the guiding task. On a refused configuration: logs why and
-/// returns with the drivers disabled and nothing started.
+/// Validates the configuration, builds the model, starts the step tick,
+/// enables the drivers and starts the guiding task (high priority) and the
+/// learning task (on `spawner`, thread mode). On a refused configuration:
+/// logs why and returns with the drivers disabled and nothing started.
 fn start(
+    spawner: Spawner,
     tim: embassy_stm32::Peri<'static, hal::stepper::StepTimer>,
     ra: StepAxis,
     dec: StepAxis,
@@ -531,6 +638,17 @@ fn start(
         config.guide_rate_sidereal,
         config.step_tick_hz
     );
+    let Some(learner) = make_learner(&mount) else {
+        defmt::error!("the model was already built");
+        return Err(());
+    };
+    match learning_task(learner) {
+        Ok(token) => spawner.spawn(token),
+        Err(_) => {
+            defmt::error!("learning task could not be spawned");
+            return Err(());
+        }
+    }
 
     STEPPING.lock(|s| {
         s.replace(Some(Stepping {
@@ -553,9 +671,9 @@ fn start(
 
     let edges = hal::st4::start(st4_pins);
     interrupt::SDIO.set_priority(EXECUTOR_HIGH_PRIORITY);
-    let spawner = EXECUTOR_HIGH.start(interrupt::SDIO);
+    let high = EXECUTOR_HIGH.start(interrupt::SDIO);
     match guiding_task(edges, mount) {
-        Ok(token) => spawner.spawn(token),
+        Ok(token) => high.spawn(token),
         Err(_) => {
             defmt::error!("guiding task could not be spawned");
             return Err(());
