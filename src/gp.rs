@@ -12,6 +12,8 @@
 //! on the prediction point and scaled (t' = (t - t_pred) / 1000 s): the
 //! fitted mean does not depend on that choice, but `f32` does.
 
+use core::cmp::Ordering;
+
 use crate::grid::{Grid, CELL_S, GRID_CELLS};
 use crate::kernel::Kernel;
 use crate::ldlt::{dot, FactorError, Ldlt};
@@ -34,7 +36,7 @@ pub enum InferError {
 }
 
 /// Inference state. RAM: the packed Gram factor (5,050 scalars, 20,200 bytes
-/// in `f32`), five vectors of [`SUBSET`] scalars and the subset's cell
+/// in `f32`), four vectors of [`SUBSET`] scalars and the subset's cell
 /// indices (about 22.5 KiB in `f32` all told).
 pub struct Gp<S: Scalar> {
     chol: Ldlt<S, SUBSET, TRIANGLE>,
@@ -42,10 +44,9 @@ pub struct Gp<S: Scalar> {
     cells: [u16; SUBSET],
     /// The posterior weights `w`.
     weights: [S; SUBSET],
-    /// Scratch: `K⁻¹ 1` and `K⁻¹ t'`, and the selection's covariances.
+    /// Scratch: `K⁻¹ 1` and `K⁻¹ t'`.
     s0: [S; SUBSET],
     s1: [S; SUBSET],
-    cov: [S; SUBSET],
     n: usize,
     /// β₁, per unit of t'.
     slope: S,
@@ -60,7 +61,6 @@ impl<S: Scalar> Gp<S> {
             weights: [S::ZERO; SUBSET],
             s0: [S::ZERO; SUBSET],
             s1: [S::ZERO; SUBSET],
-            cov: [S::ZERO; SUBSET],
             n: 0,
             slope: S::ZERO,
             valid: false,
@@ -78,10 +78,11 @@ impl<S: Scalar> Gp<S> {
     }
 
     /// Fit the model around `centre` (seconds, relative to the grid origin).
-    /// `scratch` (at least [`GRID_CELLS`] long) holds the kernel at the lags
-    /// between cells: they are multiples of 5 s, and the subset's few
+    /// `scratch` (at least 2 x [`GRID_CELLS`] long, the guider's spectrum
+    /// buffer) holds the selection's covariances and then the kernel at the
+    /// lags between cells: they are multiples of 5 s, and the subset's few
     /// hundred distinct lags are each evaluated once instead of once per
-    /// Gram entry.
+    /// Gram entry. A shorter `scratch` gives [`InferError::Degenerate`].
     pub fn infer<const N: usize>(
         &mut self,
         grid: &Grid<S>,
@@ -94,7 +95,9 @@ impl<S: Scalar> Gp<S> {
         if total < 2 {
             return Err(InferError::TooLittleData);
         }
-        self.select(grid, kernel, centre);
+        if !self.select(grid, kernel, centre, scratch) {
+            return Err(InferError::Degenerate);
+        }
         let n = self.n;
 
         // Gram matrix. Lags between cells are exact multiples of 5 s; a
@@ -205,9 +208,23 @@ impl<S: Scalar> Gp<S> {
     }
 
     /// Choose the cells with the largest full-kernel covariance to `centre`;
-    /// of equal covariances the older cell wins. Leaves them in
-    /// `self.cells`, ascending.
-    fn select<const N: usize>(&mut self, grid: &Grid<S>, kernel: &Kernel<S, N>, centre: f64) {
+    /// of equal covariances the older cell wins (NaN counts as the lowest).
+    /// Leaves them in `self.cells`, ascending. `scratch` must hold two
+    /// covariances per cell (`2 * grid.len()`); returns false otherwise.
+    ///
+    /// The members are exactly the `SUBSET` first cells in the order
+    /// (covariance descending, cell ascending), found without a heap: the
+    /// covariances go to `scratch`, a copy is partitioned around the
+    /// `SUBSET`-th (`select_nth_unstable_by`, O(cells)), and one pass in cell
+    /// order takes every cell above that threshold and, of the cells equal
+    /// to it, the oldest ones, ascending as they come.
+    fn select<const N: usize>(
+        &mut self,
+        grid: &Grid<S>,
+        kernel: &Kernel<S, N>,
+        centre: f64,
+        scratch: &mut [S],
+    ) -> bool {
         let total = grid.len();
         let k = total.min(SUBSET);
         self.n = k;
@@ -215,11 +232,13 @@ impl<S: Scalar> Gp<S> {
             for (i, c) in self.cells.iter_mut().enumerate().take(total) {
                 *c = i as u16;
             }
-            return;
+            return true;
         }
-        // Min-heap of (covariance, cell) on self.cov / self.cells, ordered so
-        // that the root is the weakest member: lowest covariance, and of
-        // equals the newest cell.
+        if scratch.len() < 2 * total {
+            return false;
+        }
+        let (cov, rest) = scratch.split_at_mut(total);
+        let copy = &mut rest[..total];
         let centre_s = S::from_f64(centre);
         // Cell times in S, stepping 5 s from the oldest: exact (multiples of
         // 2.5 s; in f32 up to 2^23 s), so each equals
@@ -227,57 +246,142 @@ impl<S: Scalar> Gp<S> {
         // f64 arithmetic per cell on the target.
         let step = S::from_f64(CELL_S);
         let mut t_j = S::from_f64(grid.cell_time(0));
-        let weaker = |cov: &[S], cells: &[u16], a: usize, b: usize| {
-            cov[a] < cov[b] || (cov[a] == cov[b] && cells[a] > cells[b])
-        };
-        for j in 0..total {
-            let c = kernel.full(centre_s - t_j);
+        for c in cov.iter_mut() {
+            *c = kernel.full(centre_s - t_j);
             t_j += step;
-            // NaN never enters: `c > root` is false for NaN.
-            if j < k {
-                self.cov[j] = c;
-                self.cells[j] = j as u16;
-                // sift up
-                let mut i = j;
-                while i > 0 {
-                    let p = (i - 1) / 2;
-                    if weaker(&self.cov, &self.cells, i, p) {
-                        self.cov.swap(i, p);
-                        self.cells.swap(i, p);
-                        i = p;
-                    } else {
-                        break;
-                    }
+        }
+        copy.copy_from_slice(cov);
+        // Descending, NaN last: a total order.
+        let order = |a: &S, b: &S| {
+            if *a > *b {
+                Ordering::Less
+            } else if *a < *b {
+                Ordering::Greater
+            } else if *a == *b || (is_nan(*a) && is_nan(*b)) {
+                Ordering::Equal
+            } else if is_nan(*a) {
+                Ordering::Greater
+            } else {
+                Ordering::Less
+            }
+        };
+        let (above, &mut threshold, _) = copy.select_nth_unstable_by(k - 1, order);
+        let mut ties = k - above
+            .iter()
+            .filter(|c| order(c, &threshold) == Ordering::Less)
+            .count();
+        let mut m = 0;
+        for (j, c) in cov.iter().enumerate() {
+            let take = match order(c, &threshold) {
+                Ordering::Less => true,
+                Ordering::Equal if ties > 0 => {
+                    ties -= 1;
+                    true
                 }
-            } else if c > self.cov[0] {
-                self.cov[0] = c;
-                self.cells[0] = j as u16;
-                // sift down
-                let mut i = 0;
-                loop {
-                    let (l, r) = (2 * i + 1, 2 * i + 2);
-                    let mut m = i;
-                    if l < k && weaker(&self.cov, &self.cells, l, m) {
-                        m = l;
-                    }
-                    if r < k && weaker(&self.cov, &self.cells, r, m) {
-                        m = r;
-                    }
-                    if m == i {
-                        break;
-                    }
-                    self.cov.swap(i, m);
-                    self.cells.swap(i, m);
-                    i = m;
+                _ => false,
+            };
+            if take {
+                if let Some(slot) = self.cells.get_mut(m) {
+                    *slot = j as u16;
                 }
+                m += 1;
             }
         }
-        self.cells[..k].sort_unstable();
+        true
     }
+}
+
+fn is_nan<S: Scalar>(x: S) -> bool {
+    x.partial_cmp(&x).is_none()
 }
 
 impl<S: Scalar> Default for Gp<S> {
     fn default() -> Self {
         Self::new()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use std::vec::Vec;
+
+    /// The subset by sorting every cell: (covariance descending, cell
+    /// ascending), the first `SUBSET`, ascending.
+    fn reference<S: Scalar, const N: usize>(
+        grid: &Grid<S>,
+        kernel: &Kernel<S, N>,
+        centre: f64,
+    ) -> Vec<u16> {
+        let centre_s = S::from_f64(centre);
+        let mut all: Vec<(S, u16)> = (0..grid.len())
+            .map(|j| {
+                let t = S::from_f64(grid.cell_time(j));
+                (kernel.full(centre_s - t), j as u16)
+            })
+            .collect();
+        all.sort_by(|a, b| b.0.partial_cmp(&a.0).unwrap().then(a.1.cmp(&b.1)));
+        let mut cells: Vec<u16> = all.iter().take(SUBSET).map(|x| x.1).collect();
+        cells.sort();
+        cells
+    }
+
+    fn grid<S: Scalar>(seconds: f64) -> Grid<S> {
+        let mut g = Grid::new();
+        let mut t = 0.0;
+        while t < seconds {
+            g.push(t, libm::sin(t / 50.0), 0.5);
+            t += 2.0;
+        }
+        g
+    }
+
+    fn check<S: Scalar, const N: usize>(grid: &Grid<S>, kernel: &Kernel<S, N>, centre: f64) {
+        let mut gp = Gp::<S>::new();
+        let mut scratch = [S::ZERO; 2 * GRID_CELLS];
+        assert!(gp.select(grid, kernel, centre, &mut scratch));
+        let want = reference(grid, kernel, centre);
+        assert_eq!(&gp.cells[..gp.n], &want[..], "centre {centre}");
+    }
+
+    #[test]
+    fn select_is_the_sorted_top_subset() {
+        let g64 = grid::<f64>(6000.0);
+        let g32 = grid::<f32>(6000.0);
+        let k1: Kernel<f64, 1> = Kernel::new(&[288.0], &[1.0]);
+        let k2: Kernel<f64, 2> = Kernel::new(&[288.0, 110.0], &[1.0, 0.7]);
+        let k1f: Kernel<f32, 1> = Kernel::new(&[288.0], &[1.0]);
+        let k2f: Kernel<f32, 2> = Kernel::new(&[432.0, 155.0], &[1.0, 1.0]);
+        let newest = g64.cell_time(g64.len() - 1);
+        for centre in [newest + 2.5, newest + 3.7, newest + 40.0, newest - 1000.0] {
+            check(&g64, &k1, centre);
+            check(&g64, &k2, centre);
+            check(&g32, &k1f, centre);
+            check(&g32, &k2f, centre);
+        }
+        // Centred between two cells in the middle: every covariance comes
+        // twice (k(d) = k(-d)), and of each pair the older cell must win.
+        let mid = g64.cell_time(600) + 2.5;
+        check(&g64, &k1, mid);
+        check(&g64, &k2, mid);
+        check(&g32, &k1f, mid);
+        check(&g32, &k2f, mid);
+        // Few cells: all of them.
+        let small = grid::<f64>(300.0);
+        check(&small, &k1, 310.0);
+    }
+
+    #[test]
+    fn short_scratch_is_an_error_not_a_panic() {
+        let g = grid::<f64>(3000.0);
+        let k: Kernel<f64, 1> = Kernel::new(&[288.0], &[1.0]);
+        let mut gp = Gp::<f64>::new();
+        let mut scratch = [0.0; GRID_CELLS];
+        assert_eq!(
+            gp.infer(&g, &k, 3001.0, &mut scratch[..100]),
+            Err(InferError::Degenerate)
+        );
+        assert_eq!(gp.infer(&g, &k, 3001.0, &mut scratch), Ok(()));
     }
 }
