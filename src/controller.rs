@@ -104,13 +104,14 @@
 //! The edge is timestamped by the hal's interrupt; the ST4 logic confirms a
 //! start after `glitch_us` (default 1 ms: the only deliberate delay, against
 //! contact bounce) and a release at once. The high-priority task then runs
-//! `St4::poll`, [`Guiding::on_event`] and [`Guiding::rates`] (tens of
-//! microseconds at most, including the soft-float `f64` parts) and sets the
-//! step generator, whose next step follows within one step period. The
-//! model runs in a lower-priority task (3-4.5 M instructions, about 40-50 ms
-//! at 96 MHz) and is preempted, so it never adds to this: worst case
-//! `glitch_us + ~50 us + one timer tick (20 us at 50 kHz)` from the edge to
-//! the new rate for a start, `~50 us + one tick` for an end. The time a
+//! `St4::poll`, [`Guiding::on_event`] and [`Guiding::rates`] (about 3,200
+//! instructions together, mostly the soft-float `f64` parts: ~45 us at
+//! 96 MHz) and sets the step generator, whose next step follows within one
+//! step period. The model runs in a lower-priority task (about 1.5 M
+//! instructions, 20-30 ms at 96 MHz) and is preempted, so it never adds to
+//! this: worst case `glitch_us + ~70 us + one timer tick (20 us at 50 kHz)`
+//! from the edge to the new rate for a start, `~70 us + one tick` for an end
+//! (the firmware's `main.rs` itemises it). The time a
 //! confirmed start waited (the glitch time) is not made up, so a pulse moves
 //! `glitch_us x guide rate` less than asked (7.5 milli-arcsec at 0.5x); C
 //! counts the steps actually made, so the learning is not biased by it.
