@@ -100,29 +100,60 @@ impl<S: Scalar> Gp<S> {
         }
         let n = self.n;
 
-        // Gram matrix. Lags between cells are exact multiples of 5 s; a
-        // non-finite entry marks a lag not evaluated yet (the kernel is
-        // finite: bounded by its variances).
+        // Gram matrix from a table of the kernel at the lags between members:
+        // exact multiples of 5 s, m = 0 ..= span cells. The members form runs
+        // of consecutive cells, and the lags between two runs are one
+        // interval: the table's entries that occur are marked run pair by
+        // run pair, and evaluated in one pass.
         let cell = S::from_f64(CELL_S);
-        let len = GRID_CELLS.min(scratch.len());
-        let lags = &mut scratch[..len];
-        let unknown = S::ZERO / S::ZERO;
-        lags.fill(unknown);
-        self.chol.set_dim(n);
-        for i in 0..n {
-            let ci = self.cells[i] as usize;
-            let var_i = grid.cell(ci).1;
-            let cells = self.cells;
-            let row = self.chol.row_mut(i);
-            for (j, r) in row.iter_mut().enumerate() {
-                let m = ci - cells[j] as usize;
-                let Some(k) = lags.get_mut(m) else {
-                    return Err(InferError::Degenerate);
-                };
-                if !k.is_finite() {
-                    *k = kernel.full(S::from_usize(m) * cell);
+        let cells = &self.cells[..n];
+        let span = (cells[n - 1] - cells[0]) as usize;
+        let Some(lags) = scratch.get_mut(..=span) else {
+            return Err(InferError::Degenerate);
+        };
+        let mut runs = [(0u16, 0u16); SUBSET];
+        let mut n_runs = 0;
+        for &c in cells {
+            match runs[..n_runs].last_mut() {
+                Some(run) if run.1 + 1 == c => run.1 = c,
+                _ => {
+                    runs[n_runs] = (c, c);
+                    n_runs += 1;
                 }
-                *r = *k;
+            }
+        }
+        let runs = &runs[..n_runs];
+        // Unused entries stay NaN; used ones are marked zero, then evaluated.
+        lags.fill(S::ZERO / S::ZERO);
+        for (a, &(a0, a1)) in runs.iter().enumerate() {
+            for &(b0, b1) in &runs[..a] {
+                if let Some(used) = lags.get_mut((a0 - b1) as usize..=(a1 - b0) as usize) {
+                    used.fill(S::ZERO);
+                }
+            }
+            if let Some(used) = lags.get_mut(..=(a1 - a0) as usize) {
+                used.fill(S::ZERO);
+            }
+        }
+        for (m, k) in lags.iter_mut().enumerate() {
+            if *k == S::ZERO {
+                *k = kernel.full(S::from_usize(m) * cell);
+            }
+        }
+        // Rows: lags[ci - cj], j <= i. The lag is below `span + 1 <=
+        // GRID_CELLS`, so the mask changes nothing and spares the check.
+        let Some(table) = scratch.get(..GRID_CELLS) else {
+            return Err(InferError::Degenerate);
+        };
+        let Ok(table) = <&[S; GRID_CELLS]>::try_from(table) else {
+            return Err(InferError::Degenerate);
+        };
+        self.chol.set_dim(n);
+        for (i, &ci) in cells.iter().enumerate() {
+            let var_i = grid.cell(ci as usize).1;
+            let row = self.chol.row_mut(i);
+            for (r, &cj) in row.iter_mut().zip(cells) {
+                *r = table[ci.wrapping_sub(cj) as usize & (GRID_CELLS - 1)];
             }
             row[i] += var_i;
         }
