@@ -14,7 +14,7 @@
 use crate::grid::CELL_S;
 use crate::period::PeriodTracker;
 use crate::scalar::Scalar;
-use crate::spectrum::{period_bin, Spectrum, NYQUIST_BIN};
+use crate::spectrum::{bin_period, period_bin, Line, Spectrum, NYQUIST_BIN};
 
 /// Half-width of a notch, relative, in frequency. The paper uses 8 %; that
 /// hides a stage 7 % from a known line's harmonic (C5's 155 s stage beside
@@ -37,6 +37,12 @@ pub const FOLLOW_WIDTH: f64 = 0.1;
 /// Beat periods of data required against every known stage (resolution
 /// guard). Measured on C2 and C8: see `docs/model.md`.
 pub const RESOLUTION_BEATS: f64 = 1.5;
+/// A found stage that is not yet fully gated in moves to twice or half its
+/// period where that line has this many times the power of its own, if the
+/// new period is below this many worm periods. Measured on C5, C6 and the
+/// PHD2 logs: see `docs/model.md`.
+pub const MOVE_POWER_RATIO: f64 = 2.0;
+pub const MOVE_MAX_WORM_PERIODS: f64 = 0.9;
 /// Evidence gate thresholds on the smoothed amplitude ratio.
 pub const GATE_OFF: f64 = 0.15;
 pub const GATE_FULL: f64 = 0.35;
@@ -82,6 +88,42 @@ pub fn resolved(period: f64, known: &[f64], span_s: f64) -> bool {
     known
         .iter()
         .all(|&p| span_s * (1.0 / period - 1.0 / p).abs() >= RESOLUTION_BEATS)
+}
+
+/// Bins (fractional) of the band `width` either side of `period`, in
+/// frequency.
+fn band_bins(period: f64, width: f64) -> (f64, f64) {
+    let b = period_bin(period);
+    (b * (1.0 - width), b * (1.0 + width))
+}
+
+/// The strongest line in the bins `[lo, hi]` that is a local maximum of the
+/// spectrum (the strongest bin beside a notch is otherwise the skirt of the
+/// notched line's main lobe) and neither notched nor commensurate with a
+/// known period.
+fn strongest_line<S: Scalar>(
+    spectrum: &Spectrum<'_, S>,
+    lo: f64,
+    hi: f64,
+    known: &[f64],
+) -> Option<Line> {
+    let lo = libm::ceil(lo.max(1.0)) as usize;
+    let hi = (libm::floor(hi) as usize).min(NYQUIST_BIN);
+    spectrum.strongest(lo, hi, |k| {
+        let p = bin_period(k as f64);
+        let power = spectrum.power(k);
+        power > spectrum.power(k - 1)
+            && power > spectrum.power(k + 1)
+            && !notched(p, known)
+            && !commensurate(p, known)
+    })
+}
+
+/// The line a found stage follows: the strongest within [`FOLLOW_WIDTH`] of
+/// `period`.
+fn line_near<S: Scalar>(spectrum: &Spectrum<'_, S>, period: f64, known: &[f64]) -> Option<Line> {
+    let (lo, hi) = band_bins(period, FOLLOW_WIDTH);
+    strongest_line(spectrum, lo, hi, known)
 }
 
 /// What the search knows of one stage.
@@ -153,41 +195,53 @@ impl<const N: usize> Discovery<N> {
             }
             let known = &known[..n_known];
             let stage = &mut self.stages[s];
-            let centre = if stage.found {
-                Some(trackers[s].period_s)
-            } else {
-                self.seeds[s]
-            };
-            let (lo, hi) = match centre {
-                Some(p) => {
-                    let b = period_bin(p);
-                    (b * (1.0 - FOLLOW_WIDTH), b * (1.0 + FOLLOW_WIDTH))
-                }
-                None => (
-                    period_bin(BAND_WORM_PERIODS * trackers[0].period_s),
-                    period_bin(4.0 * CELL_S),
-                ),
-            };
-            let lo = libm::ceil(lo.max(1.0)) as usize;
-            let hi = (libm::floor(hi) as usize).min(NYQUIST_BIN);
-            // Only a local maximum is a line: the strongest bin beside a
-            // notch is otherwise the skirt of the notched line's main lobe.
-            let line = spectrum.strongest(lo, hi, |k| {
-                let p = crate::spectrum::bin_period(k as f64);
-                let power = spectrum.power(k);
-                power > spectrum.power(k - 1)
-                    && power > spectrum.power(k + 1)
-                    && !notched(p, known)
-                    && !commensurate(p, known)
-            });
             stage.line_period_s = None;
             stage.ratio_now = 0.0;
-            let Some(line) = line else { continue };
-            let admissible = !commensurate(line.period_s, known)
-                && (stage.found || resolved(line.period_s, known, span_s));
-            if !admissible || !(worm_power > 0.0) {
+            if !(worm_power > 0.0) {
                 continue;
             }
+            let band_lo = 4.0 * CELL_S;
+            let band_hi = BAND_WORM_PERIODS * trackers[0].period_s;
+            let line = if stage.found {
+                let own = trackers[s].period_s;
+                let mut line = line_near(spectrum, own, known);
+                // Follow the energy: a stage whose gate is not yet fully
+                // open moves to its octave (twice or half its period) when
+                // that line carries clearly more power than its own. (On C5
+                // the search can find 77.5 s, the weaker harmonic, before
+                // the 155 s fundamental stands out, and the guard then bars
+                // the fundamental for good; a stage already strong stays,
+                // as C7's dominant 77.5 s harmonic does.) Lines near the
+                // worm's period are its own skirt or de-trend residue.
+                if stage.ratio < GATE_FULL {
+                    for relative in [2.0 * own, 0.5 * own] {
+                        if relative < band_lo
+                            || relative > MOVE_MAX_WORM_PERIODS * trackers[0].period_s
+                        {
+                            continue;
+                        }
+                        let Some(r) = line_near(spectrum, relative, known) else {
+                            continue;
+                        };
+                        if r.power > MOVE_POWER_RATIO * line.map_or(0.0, |l| l.power) {
+                            line = Some(r);
+                            trackers[s] = PeriodTracker {
+                                period_s: r.period_s,
+                                ..trackers[s]
+                            };
+                        }
+                    }
+                }
+                line
+            } else {
+                let (lo, hi) = match self.seeds[s] {
+                    Some(p) => band_bins(p, FOLLOW_WIDTH),
+                    None => (period_bin(band_hi), period_bin(band_lo)),
+                };
+                strongest_line(spectrum, lo, hi, known)
+                    .filter(|l| resolved(l.period_s, known, span_s))
+            };
+            let Some(line) = line else { continue };
             if !stage.found {
                 stage.found = true;
                 trackers[s] = PeriodTracker::new(line.period_s);
