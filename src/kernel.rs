@@ -117,7 +117,7 @@ impl<S: Scalar, const N: usize> Kernel<S, N> {
     /// length scale being the shortest) less than 2^-54 of the long SE
     /// term alone, so adding it cannot change the sum's `f64` rounding (see
     /// the bound at [`SHORT_CUTOFF`]). NaN lags still propagate.
-    #[inline]
+    #[inline(always)]
     pub fn full(&self, d: S) -> S {
         let k = self.projection(d);
         let short = self.short_coeff * d * d;
