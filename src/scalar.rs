@@ -63,6 +63,16 @@ pub trait Scalar:
     fn dot_rows(rows: [&[Self]; crate::ldlt::BLOCK], c: &[Self]) -> [Self; crate::ldlt::BLOCK] {
         crate::ldlt::dot_rows_portable(rows, c)
     }
+    /// The forward substitution's inner loop for three right-hand sides:
+    /// `[l · x, l · y, l · z]` over the shortest slice.
+    fn dot3(l: &[Self], x: &[Self], y: &[Self], z: &[Self]) -> [Self; 3] {
+        crate::ldlt::dot3_portable(l, x, y, z)
+    }
+    /// The back substitution's inner loop for three right-hand sides:
+    /// `v[r][k] -= l[k] * f[r]` over the shortest slice.
+    fn sub_scaled3(l: &[Self], v: [&mut [Self]; 3], f: [Self; 3]) {
+        crate::ldlt::sub_scaled3_portable(l, v, f)
+    }
     fn min(self, other: Self) -> Self {
         if other < self {
             other
@@ -169,5 +179,13 @@ impl Scalar for f32 {
     #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
     fn dot_rows(rows: [&[Self]; crate::ldlt::BLOCK], c: &[Self]) -> [Self; crate::ldlt::BLOCK] {
         crate::vfp::dot_rows(rows, c)
+    }
+    #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
+    fn dot3(l: &[Self], x: &[Self], y: &[Self], z: &[Self]) -> [Self; 3] {
+        crate::ldlt::vfp3::dot3(l, x, y, z)
+    }
+    #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
+    fn sub_scaled3(l: &[Self], v: [&mut [Self]; 3], f: [Self; 3]) {
+        crate::ldlt::vfp3::sub_scaled3(l, v, f)
     }
 }
