@@ -123,8 +123,8 @@ impl<S: Scalar> Gp<S> {
             }
         }
         let runs = &runs[..n_runs];
-        // Unused entries stay NaN; used ones are marked zero, then evaluated.
-        lags.fill(S::ZERO / S::ZERO);
+        // Used entries are marked zero, then evaluated; unused ones stay -1.
+        lags.fill(-S::ONE);
         for (a, &(a0, a1)) in runs.iter().enumerate() {
             for &(b0, b1) in &runs[..a] {
                 if let Some(used) = lags.get_mut((a0 - b1) as usize..=(a1 - b0) as usize) {
