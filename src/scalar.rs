@@ -182,10 +182,10 @@ impl Scalar for f32 {
     }
     #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
     fn dot3(l: &[Self], x: &[Self], y: &[Self], z: &[Self]) -> [Self; 3] {
-        crate::ldlt::vfp3::dot3(l, x, y, z)
+        crate::vfp::dot3(l, x, y, z)
     }
     #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
     fn sub_scaled3(l: &[Self], v: [&mut [Self]; 3], f: [Self; 3]) {
-        crate::ldlt::vfp3::sub_scaled3(l, v, f)
+        crate::vfp::sub_scaled3(l, v, f)
     }
 }

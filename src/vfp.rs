@@ -1,4 +1,5 @@
-//! Hand-scheduled inner loop for the Cortex-M4F's FPU.
+//! Hand-scheduled inner loops for the Cortex-M4F's FPU: the factorisation's
+//! (`dot_rows`) and the solves' (`dot3`, `sub_scaled3`).
 //!
 //! Factoring the Gram matrix is most of a guide frame, and almost all of it
 //! is four dot products against a shared row ([`crate::ldlt`]). Compiled
@@ -74,4 +75,128 @@ pub fn dot_rows(rows: [&[f32]; BLOCK], c: &[f32]) -> [f32; BLOCK] {
         }
     }
     acc
+}
+
+// The solves' inner loops, as `dot_rows` does for the factorisation: compiled from Rust each multiply-add costs
+// a `VLDR` per operand (and for the back substitution a `VSTR`) plus
+// pointer increments; here one `VLDMIA`/`VSTMIA` moves four elements of an
+// operand. `VMLA.F32`/`VMLS.F32` round the product before adding, like the
+// portable `s += l * a` and `a -= l * f`, and the order of the operations
+// per element and sum is the same: bit-identical to
+// [`crate::ldlt::dot3_portable`] and [`crate::ldlt::sub_scaled3_portable`].
+/// [`crate::ldlt::dot3_portable`] for `f32`.
+pub fn dot3(l: &[f32], x: &[f32], y: &[f32], z: &[f32]) -> [f32; 3] {
+    let n = l.len().min(x.len()).min(y.len()).min(z.len());
+    let blocks = n / 4;
+    let mut acc = [0.0f32; 3];
+    if blocks > 0 {
+        // SAFETY: each pointer is valid for `4 * blocks <= n` elements,
+        // read only; `acc` is valid for three writes; the clobbered FPU
+        // registers are declared (s16-s18 are callee-saved: the
+        // compiler saves them).
+        unsafe {
+            core::arch::asm!(
+                "vldmia {acc}, {{s16-s18}}",
+                "2:",
+                "vldmia {l}!, {{s0-s3}}",
+                "vldmia {x}!, {{s4-s7}}",
+                "vmla.f32 s16, s0, s4",
+                "vmla.f32 s16, s1, s5",
+                "vmla.f32 s16, s2, s6",
+                "vmla.f32 s16, s3, s7",
+                "vldmia {y}!, {{s4-s7}}",
+                "vmla.f32 s17, s0, s4",
+                "vmla.f32 s17, s1, s5",
+                "vmla.f32 s17, s2, s6",
+                "vmla.f32 s17, s3, s7",
+                "vldmia {z}!, {{s4-s7}}",
+                "vmla.f32 s18, s0, s4",
+                "vmla.f32 s18, s1, s5",
+                "vmla.f32 s18, s2, s6",
+                "vmla.f32 s18, s3, s7",
+                "subs {n}, #1",
+                "bne 2b",
+                "vstmia {acc}, {{s16-s18}}",
+                acc = in(reg) acc.as_mut_ptr(),
+                l = inout(reg) l.as_ptr() => _,
+                x = inout(reg) x.as_ptr() => _,
+                y = inout(reg) y.as_ptr() => _,
+                z = inout(reg) z.as_ptr() => _,
+                n = inout(reg) blocks => _,
+                out("s0") _, out("s1") _, out("s2") _, out("s3") _,
+                out("s4") _, out("s5") _, out("s6") _, out("s7") _,
+                out("s16") _, out("s17") _, out("s18") _,
+                options(nostack),
+            );
+        }
+    }
+    // The last n % 4 elements continue the same sums.
+    for k in 4 * blocks..n {
+        acc[0] += l[k] * x[k];
+        acc[1] += l[k] * y[k];
+        acc[2] += l[k] * z[k];
+    }
+    acc
+}
+
+/// [`crate::ldlt::sub_scaled3_portable`] for `f32`.
+pub fn sub_scaled3(l: &[f32], v: [&mut [f32]; 3], f: [f32; 3]) {
+    let [x, y, z] = v;
+    let n = l.len().min(x.len()).min(y.len()).min(z.len());
+    let blocks = n / 4;
+    if blocks > 0 {
+        // SAFETY: each pointer is valid for `4 * blocks <= n` elements;
+        // `l` is only read, `x`, `y`, `z` are exclusive borrows, each
+        // element read and then written in place; the clobbered FPU
+        // registers are declared (s16-s18 are callee-saved: the
+        // compiler saves them).
+        unsafe {
+            core::arch::asm!(
+                "vmov s16, {f0}",
+                "vmov s17, {f1}",
+                "vmov s18, {f2}",
+                "2:",
+                "vldmia {l}!, {{s0-s3}}",
+                "vldmia {x}, {{s4-s7}}",
+                "vmls.f32 s4, s0, s16",
+                "vmls.f32 s5, s1, s16",
+                "vmls.f32 s6, s2, s16",
+                "vmls.f32 s7, s3, s16",
+                "vstmia {x}!, {{s4-s7}}",
+                "vldmia {y}, {{s8-s11}}",
+                "vmls.f32 s8, s0, s17",
+                "vmls.f32 s9, s1, s17",
+                "vmls.f32 s10, s2, s17",
+                "vmls.f32 s11, s3, s17",
+                "vstmia {y}!, {{s8-s11}}",
+                "vldmia {z}, {{s12-s15}}",
+                "vmls.f32 s12, s0, s18",
+                "vmls.f32 s13, s1, s18",
+                "vmls.f32 s14, s2, s18",
+                "vmls.f32 s15, s3, s18",
+                "vstmia {z}!, {{s12-s15}}",
+                "subs {n}, #1",
+                "bne 2b",
+                f0 = in(reg) f[0].to_bits(),
+                f1 = in(reg) f[1].to_bits(),
+                f2 = in(reg) f[2].to_bits(),
+                l = inout(reg) l.as_ptr() => _,
+                x = inout(reg) x.as_mut_ptr() => _,
+                y = inout(reg) y.as_mut_ptr() => _,
+                z = inout(reg) z.as_mut_ptr() => _,
+                n = inout(reg) blocks => _,
+                out("s0") _, out("s1") _, out("s2") _, out("s3") _,
+                out("s4") _, out("s5") _, out("s6") _, out("s7") _,
+                out("s8") _, out("s9") _, out("s10") _, out("s11") _,
+                out("s12") _, out("s13") _, out("s14") _, out("s15") _,
+                out("s16") _, out("s17") _, out("s18") _,
+                options(nostack),
+            );
+        }
+    }
+    for k in 4 * blocks..n {
+        x[k] -= l[k] * f[0];
+        y[k] -= l[k] * f[1];
+        z[k] -= l[k] * f[2];
+    }
 }

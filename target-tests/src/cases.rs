@@ -29,6 +29,7 @@ pub static CASES: &[Test] = &[
     case!(instr_counter::measures_delay_loop),
     case!(instr_counter::longer_loop_measures_more),
     case!(vfp::dot_rows_matches_portable),
+    case!(vfp::solve_loops_match_portable),
     case!(model_f32::ldlt_known_solve),
     case!(model_f32::fft_pure_tone),
     case!(model_f32::spectrum_finds_the_period),

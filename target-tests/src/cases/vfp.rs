@@ -1,5 +1,5 @@
-//! The hand-scheduled FPU loop (`mkgp_mount::vfp`) against the portable
-//! code it replaces: bit-identical sums for every length around the
+//! The hand-scheduled FPU loops (`mkgp_mount::vfp`) against the portable
+//! code they replace: bit-identical sums for every length around the
 //! four-element passes, on the target where it runs.
 
 use crate::harness::TestResult;
@@ -46,6 +46,38 @@ pub fn dot_rows_matches_portable() -> TestResult {
     );
     if fast != portable {
         return Err("vfp::dot_rows: unequal lengths not cut to the shortest");
+    }
+    Ok(())
+}
+
+pub fn solve_loops_match_portable() -> TestResult {
+    use mkgp_mount::ldlt::{dot3_portable, sub_scaled3_portable};
+    use mkgp_mount::vfp::{dot3, sub_scaled3};
+    let mut state = 0x0bad_cafeu32;
+    let mut data = [[0.0f32; 43]; 4];
+    for row in &mut data {
+        fill(&mut state, row);
+    }
+    let f = [0.75f32, -1.25, 0.5];
+    for n in 0..=43 {
+        let (l, x, y, z) = (&data[0][..n], &data[1][..n], &data[2][..n], &data[3][..n]);
+        let fast = dot3(l, x, y, z);
+        let portable = dot3_portable(l, x, y, z);
+        if fast.map(f32::to_bits) != portable.map(f32::to_bits) {
+            return Err("vfp::dot3 differs from the portable sums");
+        }
+        let (mut a, mut b) = ([data[1], data[2], data[3]], [data[1], data[2], data[3]]);
+        {
+            let [a0, a1, a2] = &mut a;
+            sub_scaled3(l, [&mut a0[..n], &mut a1[..n], &mut a2[..n]], f);
+            let [b0, b1, b2] = &mut b;
+            sub_scaled3_portable(l, [&mut b0[..n], &mut b1[..n], &mut b2[..n]], f);
+        }
+        for r in 0..3 {
+            if a[r].map(f32::to_bits) != b[r].map(f32::to_bits) {
+                return Err("vfp::sub_scaled3 differs from the portable update");
+            }
+        }
     }
     Ok(())
 }
