@@ -312,6 +312,59 @@ mod tests {
     }
 
     #[test]
+    fn scan_finds_the_second_stage_of_a_known_spectrum() {
+        use crate::grid::Grid;
+        use crate::spectrum::Spectrum;
+        // C8's two stages, each with its second harmonic.
+        let pi2 = 2.0 * core::f64::consts::PI;
+        let g = |t: f64| {
+            9.0 * libm::sin(pi2 * t / 288.0)
+                + 6.0 * libm::sin(pi2 * t / 144.0)
+                + 4.5 * libm::sin(pi2 * t / 110.0)
+                + 3.6 * libm::sin(pi2 * t / 55.0)
+        };
+        let mut grid: Grid<f64> = Grid::new();
+        let mut t = 0.0;
+        while t < 4000.0 {
+            grid.push(t, g(t), 1.0);
+            t += 2.0;
+        }
+        let mut buf = [0.0; crate::fft::FFT_LEN];
+        let spectrum = Spectrum::compute(&grid, &mut buf).unwrap();
+        let worm = spectrum.strongest(0, NYQUIST_BIN, |_| true).unwrap();
+        assert!((worm.period_s - 288.0).abs() < 3.0, "{worm:?}");
+        let mut trackers = [PeriodTracker::new(worm.period_s); 2];
+        trackers[0].disagreement = 0.0;
+        let mut gates = [1.0, 0.0];
+        let mut d: Discovery<2> = Discovery::new([None, None]);
+        d.scan(
+            &spectrum,
+            &mut trackers,
+            worm.power,
+            grid.len() as f64 * CELL_S,
+        );
+        // The 144 s harmonic is notched; the strongest admissible line is
+        // the second stage's fundamental.
+        assert!(
+            (trackers[1].period_s - 110.0).abs() < 1.5,
+            "{:?}",
+            trackers[1]
+        );
+        for _ in 0..200 {
+            d.step(&mut trackers, &mut gates);
+        }
+        // Amplitude ratio 4.5 / 9: the gate opens fully.
+        assert!(d.ratio(1) > GATE_FULL, "{}", d.ratio(1));
+        assert_eq!(gates[1], 1.0);
+        // With the worm still unsettled nothing is searched.
+        let mut fresh: Discovery<2> = Discovery::new([None, None]);
+        let mut unsettled = [PeriodTracker::new(300.0); 2];
+        fresh.scan(&spectrum, &mut unsettled, worm.power, 4000.0);
+        fresh.step(&mut unsettled, &mut gates);
+        assert_eq!(gates[1], 0.0);
+    }
+
+    #[test]
     fn gate_is_linear_between_thresholds() {
         assert_eq!(gate(0.1), 0.0);
         assert_eq!(gate(0.5), 1.0);

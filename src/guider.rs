@@ -97,8 +97,9 @@ pub struct Faults {
     pub bad_dithers: u32,
 }
 
-/// The guider state for `N` periodic stages, on static storage.
-pub struct Guider<S: Scalar, const N: usize> {
+/// The guider state for `N` periodic stages (2 by default: the worm and one
+/// more; 1 is the single-kernel model), on static storage.
+pub struct Guider<S: Scalar, const N: usize = 2> {
     config: GuiderConfig<S>,
     grid: Grid<S>,
     /// Work buffer shared by the spectrum and the inference (16 KiB in
