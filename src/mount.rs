@@ -135,6 +135,22 @@ pub enum ConfigError {
     SilenceFrames,
 }
 
+/// The message of a rate the step tick cannot produce, for either axis.
+fn overflow(
+    f: &mut fmt::Formatter<'_>,
+    axis: &str,
+    max_steps_per_s: f32,
+    tick_hz: u32,
+) -> fmt::Result {
+    write!(
+        f,
+        "mount config: {axis} at max_rate_sidereal needs {max_steps_per_s} steps/s, \
+         more than step_tick_hz / 2 = {} (tick {tick_hz} Hz); lower max_rate_sidereal \
+         or raise step_tick_hz",
+        tick_hz / 2
+    )
+}
+
 impl fmt::Display for ConfigError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         use ConfigError::*;
@@ -160,23 +176,11 @@ impl fmt::Display for ConfigError {
             RateOverflow {
                 max_steps_per_s,
                 tick_hz,
-            } => write!(
-                f,
-                "mount config: RA at max_rate_sidereal needs {max_steps_per_s} steps/s, \
-                 more than step_tick_hz / 2 = {} (tick {tick_hz} Hz); lower max_rate_sidereal \
-                 or raise step_tick_hz",
-                tick_hz / 2
-            ),
+            } => overflow(f, "RA", max_steps_per_s, tick_hz),
             DecRateOverflow {
                 max_steps_per_s,
                 tick_hz,
-            } => write!(
-                f,
-                "mount config: Dec at max_rate_sidereal needs {max_steps_per_s} steps/s, \
-                 more than step_tick_hz / 2 = {} (tick {tick_hz} Hz); lower max_rate_sidereal \
-                 or raise step_tick_hz",
-                tick_hz / 2
-            ),
+            } => overflow(f, "Dec", max_steps_per_s, tick_hz),
             PulseCap => write!(f, "mount config: pulse_cap_us is 0, must be > 0"),
             Glitch(v) => write!(
                 f,
