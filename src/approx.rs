@@ -405,7 +405,6 @@ fn sqrt_impl(x: f32) -> f32 {
 
 #[cfg(test)]
 mod tests {
-    extern crate std;
     use super::*;
     use std::println;
 

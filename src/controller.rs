@@ -823,7 +823,6 @@ impl<const N: usize> Learner<N> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    extern crate std;
     use crate::mount::MountConfig;
 
     fn mount() -> Mount {

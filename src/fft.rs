@@ -264,7 +264,6 @@ fn split_powers<S: Scalar>(buf: &mut [S; FFT_LEN]) {
 
 #[cfg(test)]
 mod tests {
-    extern crate std;
     use super::*;
     use std::boxed::Box;
     use std::println;

@@ -334,7 +334,6 @@ impl<S: Scalar> Default for Gp<S> {
 
 #[cfg(test)]
 mod tests {
-    extern crate std;
     use super::*;
     use std::vec::Vec;
 

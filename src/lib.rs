@@ -3,7 +3,9 @@
 //! around it. Everything here is `no_std` and generic over the scalar type,
 //! so the same code runs in `f64` on the host (the reference) and in `f32`
 //! on the Cortex-M4F.
-#![no_std]
+// `no_std` everywhere but in the library's own unit tests, which use the
+// standard library's collections and printing on the host.
+#![cfg_attr(not(test), no_std)]
 
 pub mod approx;
 pub mod controller;

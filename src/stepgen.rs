@@ -172,7 +172,6 @@ impl PhaseAccumulator {
 
 #[cfg(test)]
 mod tests {
-    extern crate std;
     use super::*;
     use crate::mount::MountConfig;
     use std::println;
