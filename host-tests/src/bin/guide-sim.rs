@@ -84,6 +84,18 @@ fn main() -> ExitCode {
     }
 }
 
+/// The cases of `--cases FILE`, or of the shared data; an error is printed.
+fn load_cases(path: Option<PathBuf>) -> Option<(PathBuf, Vec<cases::Case>)> {
+    let path = path.unwrap_or_else(data::cases_file);
+    match cases::load(&path) {
+        Ok(c) => Some((path, c)),
+        Err(e) => {
+            eprintln!("guide-sim: {e}");
+            None
+        }
+    }
+}
+
 fn cmd_table(args: &[String]) -> ExitCode {
     let mut csv = false;
     let mut cases_path: Option<PathBuf> = None;
@@ -102,13 +114,8 @@ fn cmd_table(args: &[String]) -> ExitCode {
             other => return usage_error(&format!("table: unexpected argument {other:?}")),
         }
     }
-    let path = cases_path.unwrap_or_else(data::cases_file);
-    let cases = match cases::load(&path) {
-        Ok(c) => c,
-        Err(e) => {
-            eprintln!("guide-sim: {e}");
-            return ExitCode::FAILURE;
-        }
+    let Some((_, cases)) = load_cases(cases_path) else {
+        return ExitCode::FAILURE;
     };
     let rows = table::compute(&cases, threads());
     if csv {
@@ -454,13 +461,8 @@ fn cmd_st4(args: &[String]) -> ExitCode {
             other => return usage_error(&format!("st4: unexpected argument {other:?}")),
         }
     }
-    let path = cases_path.unwrap_or_else(data::cases_file);
-    let mut cases = match cases::load(&path) {
-        Ok(c) => c,
-        Err(e) => {
-            eprintln!("guide-sim: {e}");
-            return ExitCode::FAILURE;
-        }
+    let Some((path, mut cases)) = load_cases(cases_path) else {
+        return ExitCode::FAILURE;
     };
     if let Some(id) = case_id {
         cases.retain(|c| c.name == id);
