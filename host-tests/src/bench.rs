@@ -61,22 +61,27 @@ pub struct BenchRow {
 }
 
 impl BenchRow {
-    /// The row as a CSV line (no trailing newline), columns of [`CSV_HEADER`].
-    pub fn csv(&self) -> String {
+    /// The row's cells, columns of [`CSV_HEADER`]; empty where a figure
+    /// does not apply.
+    pub fn cells(&self) -> [String; 8] {
         fn cell<T: ToString>(x: Option<T>) -> String {
             x.map_or_else(String::new, |v| v.to_string())
         }
-        format!(
-            "{},{},{},{},{},{},{},{}",
-            self.platform,
-            self.precision,
-            self.stages,
+        [
+            self.platform.to_string(),
+            self.precision.to_string(),
+            self.stages.to_string(),
             cell(self.us_median.map(|v| format!("{v:.2}"))),
             cell(self.us_p90.map(|v| format!("{v:.2}"))),
             cell(self.instructions_median),
             cell(self.instructions_max),
-            self.state_bytes
-        )
+            self.state_bytes.to_string(),
+        ]
+    }
+
+    /// The row as a CSV line (no trailing newline), columns of [`CSV_HEADER`].
+    pub fn csv(&self) -> String {
+        self.cells().join(",")
     }
 }
 

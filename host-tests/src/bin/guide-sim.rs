@@ -381,18 +381,12 @@ fn print_bench(rows: &[BenchRow]) {
         "instr_max",
         "state_bytes"
     );
-    let cell = |x: Option<String>| x.unwrap_or_default();
     for r in rows {
+        let [platform, precision, stages, us_median, us_p90, instr_median, instr_max, state] =
+            r.cells();
         println!(
-            "{:<10} {:<9} {:>6} {:>10} {:>10} {:>12} {:>12} {:>11}",
-            r.platform,
-            r.precision,
-            r.stages,
-            cell(r.us_median.map(|v| format!("{v:.2}"))),
-            cell(r.us_p90.map(|v| format!("{v:.2}"))),
-            cell(r.instructions_median.map(|v| v.to_string())),
-            cell(r.instructions_max.map(|v| v.to_string())),
-            r.state_bytes
+            "{platform:<10} {precision:<9} {stages:>6} {us_median:>10} {us_p90:>10} \
+             {instr_median:>12} {instr_max:>12} {state:>11}"
         );
     }
     let host = |precision: &str, stages: usize| {
