@@ -1,5 +1,5 @@
 //! From ST4 pulses and time to step rates, and the learning of the gear error
-//! from what the mount did (design.md section 1).
+//! from what the mount did (docs/reference.md section 1).
 //!
 //! Two parts, for two priorities:
 //!

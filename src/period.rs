@@ -1,6 +1,6 @@
 //! Period tracking: the tracked period relaxes towards each new spectral
 //! estimate, and the smoothed disagreement between the two says how far the
-//! prediction can be trusted (design.md sec. 2).
+//! prediction can be trusted (docs/reference.md section 2).
 
 /// Weight of a new estimate in the tracked period.
 pub const LEARNING_RATE: f64 = 0.01;

@@ -1,6 +1,6 @@
 //! The spectrum of the gear error that period tracking and stage discovery
 //! read: de-trended by least squares, Hamming-windowed, zero-padded to
-//! [`FFT_LEN`] and transformed (paper sec. 2; design.md sec. 2).
+//! [`FFT_LEN`] and transformed (paper sec. 2; docs/reference.md section 2).
 //!
 //! The spectrum only changes when the grid completes a cell, so the guider
 //! recomputes it then and reads it on every frame in between.

@@ -1,4 +1,4 @@
-//! The paper's synthetic closed loop (design.md section 4).
+//! The paper's synthetic closed loop (docs/reference.md section 3).
 //!
 //! Frames at t = 0, 2, ..., 10798 s. At each frame the controller sees
 //! y = g(t) - U + noise, where U is the sum of the controls already applied,
@@ -7,7 +7,7 @@
 //! star shows during the frame's exposure); the score is the RMS of the
 //! residuals of the frames with t >= 3600 s.
 //!
-//! Why U before the correction: it reproduces design.md's hysteresis figures
+//! Why U before the correction: it reproduces the hysteresis figures of docs/reference.md
 //! (e.g. C1 0.332 / 0.705); U after the correction would give 0.152 / 0.637.
 //!
 //! The controller gets SNR 10 (INDIGO's value when the SNR is unknown; the

@@ -24,7 +24,7 @@ impl<C: Controller + ?Sized> Controller for Box<C> {
 /// PHD2's hysteresis algorithm: control = aggressiveness x ((1 - hysteresis)
 /// x input + hysteresis x previous control), and 0 when |input| < min_move.
 /// The previous control is the one returned (0 after a frame below min move):
-/// that reproduces all of design.md's hysteresis figures (tests/closed_loop.rs).
+/// that reproduces all the hysteresis figures of docs/reference.md (tests/closed_loop.rs).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Hysteresis {
     pub aggressiveness: f64,

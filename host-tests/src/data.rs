@@ -1,29 +1,14 @@
-//! Where the shared data lives, and the error type of the loaders.
+//! Where the test data lives, and the error type of the loaders.
 
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-/// Environment variable that overrides the data directory. It may name the
-/// `shared/` directory (the one holding `data/`) or the data directory itself.
-pub const SHARED_ENV: &str = "MKGP_SHARED";
-
-/// The data directory: `$MKGP_SHARED/data` if that is a directory, else
-/// `$MKGP_SHARED`, else `<repo>/../shared/data` (found from this crate's
-/// manifest directory at build time). The path is not checked here; the
-/// loaders report a missing file with its full path.
+/// The data directory, `host-tests/data` in this repository (found from this
+/// crate's manifest directory at build time; see its README for where each
+/// file came from). The path is not checked here; the loaders report a
+/// missing file with its full path.
 pub fn data_dir() -> PathBuf {
-    match std::env::var_os(SHARED_ENV) {
-        Some(dir) if !dir.is_empty() => {
-            let dir = PathBuf::from(dir);
-            let data = dir.join("data");
-            if data.is_dir() {
-                data
-            } else {
-                dir
-            }
-        }
-        _ => Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data"),
-    }
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("data")
 }
 
 /// `synthetic_cases.csv` in the data directory.
@@ -77,15 +62,9 @@ impl Error {
         }
     }
 
-    /// A file that cannot be read. For files of the data directory the
-    /// message says how to point to it.
+    /// A file that cannot be read.
     pub fn io(path: &Path, err: &std::io::Error) -> Self {
-        let hint = if err.kind() == std::io::ErrorKind::NotFound && path.starts_with(data_dir()) {
-            format!(" (set {SHARED_ENV} to the shared data directory)")
-        } else {
-            String::new()
-        };
-        Error::new(path, None, format!("cannot read: {err}{hint}"))
+        Error::new(path, None, format!("cannot read: {err}"))
     }
 }
 

@@ -3,8 +3,8 @@
 //! controllers they drive (PHD2's hysteresis and the library's
 //! Gaussian-process guider).
 //!
-//! The shared data (`synthetic_cases.csv`, `phd2-logs/`, `reference-traces/`)
-//! is found by [`data::data_dir`].
+//! The test data (`synthetic_cases.csv`, `phd2-logs/`, `reference-traces/`)
+//! lives in `host-tests/data`, found by [`data::data_dir`].
 
 pub mod bench;
 pub mod cases;

@@ -1,4 +1,4 @@
-//! The closed loop's measurement noise (design.md section 4): splitmix64,
+//! The closed loop's measurement noise (docs/reference.md section 3): splitmix64,
 //! uniforms in (0, 1), Box-Muller normals (cos first, then the spare sin).
 //!
 //! One generator per run, seeded with the run's seed; the stream does not

@@ -1,4 +1,4 @@
-//! PHD2's causal replay of a guide log (design.md section 4).
+//! PHD2's causal replay of a guide log (docs/reference.md section 3).
 //!
 //! With m[i] = RARawDistance and c[i] = RAGuideDistance (+ dither) of the
 //! log's frames, the simulated mount state starts at x_0 = m[0]; at frame i
@@ -18,7 +18,7 @@
 //!   The controller is *not* told about the dither (the reference outputs
 //!   after a dither are the model's normal control, not its post-dither mode).
 //! - The RMS is over the states after each control, x_1 .. x_{n-2}. That
-//!   reproduces design.md's INDIGO improvements 0.27, 0.10, 12.26, 8.31 and
+//!   reproduces INDIGO's improvements (docs/reference.md) 0.27, 0.10, 12.26, 8.31 and
 //!   2.22 % (the states before the control give 12.18 % on log 03).
 //! - Baseline: hysteresis, aggressiveness 0.7, hysteresis 0.1, min move 0.2
 //!   (PHD2's defaults; min moves 0.15 or 0.1 do not reproduce the figures).

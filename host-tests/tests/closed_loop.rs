@@ -1,4 +1,4 @@
-//! The paper's closed loop reproduces design.md's figures.
+//! The paper's closed loop reproduces the figures of docs/reference.md.
 
 use host_tests::cases::{self, Case};
 use host_tests::closed_loop::{mean_noisy_rms, open_loop_rms, run, Noise};
@@ -9,7 +9,7 @@ fn cases() -> Vec<Case> {
     cases::load(&data::cases_file()).unwrap_or_else(|e| panic!("{e}"))
 }
 
-/// design.md: hysteresis 0.6, noise-free / 1 px mean of seeds 1-3.
+/// docs/reference.md: hysteresis 0.6, noise-free / 1 px mean of seeds 1-3.
 const HYSTERESIS: [(&str, f64, f64); 8] = [
     ("C1", 0.332, 0.705),
     ("C2", 0.367, 0.723),
@@ -62,7 +62,7 @@ fn open_loop_matches_the_paper() {
     for (case, &(name, paper)) in cases.iter().zip(&OPEN_LOOP) {
         assert_eq!(case.name, name);
         let r = open_loop_rms(case);
-        // design.md: the cases match the paper's open loop within 0.4 %.
+        // docs/reference.md: the cases match the paper's open loop within 0.4 %.
         assert!((r / paper - 1.0).abs() < 0.004, "{name}: {r:.4} vs {paper}");
     }
 }

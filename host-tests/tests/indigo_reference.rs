@@ -1,5 +1,5 @@
 //! The single-kernel case of the model (`N = 1`, `f64`) against INDIGO's
-//! own frame-by-frame output (`../shared/data/reference-traces`).
+//! own frame-by-frame output (`host-tests/data/reference-traces`).
 //!
 //! Each trace is fed its `time_s, input_px, snr`; the control must match
 //! `-output_correction_px` within 1e-3 px and the tracked period

@@ -71,7 +71,7 @@ impl Controller for Scripted<'_> {
 
 #[test]
 fn replay_reproduces_indigo_traces_and_improvements() {
-    // design.md: INDIGO's improvement over hysteresis 0.7, in %.
+    // docs/reference.md: INDIGO's improvement over hysteresis 0.7, in %.
     let indigo_gain = [0.27, 0.10, 12.26, 8.31, 2.22];
     // Our hysteresis baseline RMS (px), pinned.
     let hysteresis_rms = [0.4969, 0.5302, 0.1588, 0.1471, 1.0641];

@@ -33,8 +33,8 @@ table   residual RMS (px, t >= 3600 s) of the synthetic cases for the open loop,
         reactive (hysteresis 0.6), ppec (GP, 1 stage) and mkgp (GP, 2 stages),
         noise-free and with 1 px noise (mean of seeds 1-3). Without --csv also
         writes the bar chart guide-sim-table.svg in the current directory.
-replay  PHD2's causal replay of guide logs (default: all logs in the shared
-        data): hysteresis 0.7 baseline vs ppec and mkgp (control gain 0.7,
+replay  PHD2's causal replay of guide logs (default: all logs in
+        host-tests/data/phd2-logs): hysteresis 0.7 baseline vs ppec and mkgp (control gain 0.7,
         prediction gain 0.5, dt = the log's exposure).
 bench   cost of one guide frame of the GP guider in the closed loop on case C8
         with 1 px noise (seed 1), over the frames t >= 1200 s: host time per
@@ -50,8 +50,7 @@ st4     the firmware's closed loop: a virtual mount whose RA error is a syntheti
         t >= 3600 s of 3 h runs; noise 0 and 1 px (seeds 1-3, mean) unless
         --noise PX picks one level; --case ID runs one case.
 
-The shared data is found at $MKGP_SHARED (the shared/ directory or its data/),
-else at <repo>/../shared/data.";
+The data (cases, PHD2 logs) is read from host-tests/data in the repository.";
 
 /// Control and prediction gains of the replay (PHD2's performance test).
 const REPLAY_CONTROL_GAIN: f64 = 0.7;
@@ -84,7 +83,7 @@ fn main() -> ExitCode {
     }
 }
 
-/// The cases of `--cases FILE`, or of the shared data; an error is printed.
+/// The cases of `--cases FILE`, or of host-tests/data; an error is printed.
 fn load_cases(path: Option<PathBuf>) -> Option<(PathBuf, Vec<cases::Case>)> {
     let path = path.unwrap_or_else(data::cases_file);
     match cases::load(&path) {
