@@ -7,20 +7,5 @@
 // standard library's collections and printing on the host.
 #![cfg_attr(not(test), no_std)]
 
-pub mod approx;
-pub mod controller;
-pub mod discovery;
-pub mod fft;
-pub mod gp;
-pub mod grid;
-pub mod guider;
-pub mod kernel;
-pub mod ldlt;
+pub mod model;
 pub mod mount;
-pub mod period;
-pub mod scalar;
-pub mod spectrum;
-pub mod st4;
-pub mod stepgen;
-#[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
-pub mod vfp;

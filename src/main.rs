@@ -104,12 +104,12 @@ use static_cell::StaticCell;
 
 use hal::st4::{RawEdge, St4Edges, St4Line};
 use hal::stepper::{StepAxis, StepTicker};
-use mkgp_mount::controller::{
+use mkgp_mount::mount::config::{Mount, MountConfig};
+use mkgp_mount::mount::guiding::{
     FeedForward, Frame, FrameKind, Guiding, GuidingCounters, Learner, Rates, FRAME_QUEUE,
 };
-use mkgp_mount::mount::{Mount, MountConfig};
-use mkgp_mount::st4::{Axis, Direction, Line, St4, St4Counters, St4Event};
-use mkgp_mount::stepgen::PhaseAccumulator;
+use mkgp_mount::mount::st4::{Axis, Direction, Line, St4, St4Counters, St4Event};
+use mkgp_mount::mount::stepgen::PhaseAccumulator;
 
 /// Interval of the status log line and LED toggle.
 const HEARTBEAT: Duration = Duration::from_secs(1);

@@ -18,7 +18,7 @@
 //! discarded as a glitch anyway.
 //!
 //! What the edges mean (debounce, pulses, both lines of an axis at once, the
-//! cap) is decided by the library's `mkgp_mount::st4::St4`, which the
+//! cap) is decided by the library's `mkgp_mount::mount::st4::St4`, which the
 //! firmware feeds with these edges. This crate does not depend on the
 //! library: the firmware package depends on this one, and a dependency back
 //! would be a package cycle, so the mapping from [`St4Line`] to the library's

@@ -3,7 +3,7 @@
 //! Steps are produced in software from a periodic timer interrupt (the
 //! *tick*, [`StepTicker`], on TIM2 at `step_tick_hz`, 50 kHz by default):
 //! on each tick the firmware advances each axis' phase accumulator
-//! (`mkgp_mount::stepgen::PhaseAccumulator`, integer only) and hands the
+//! (`mkgp_mount::mount::stepgen::PhaseAccumulator`, integer only) and hands the
 //! result to that axis' [`StepAxis::tick`], which drives the pins. Timing of
 //! the outputs, in ticks (20 µs at 50 kHz):
 //!

@@ -20,8 +20,8 @@
 use crate::cases::Case;
 use crate::closed_loop::{self, Noise};
 use crate::controller::Controller;
-use mkgp_mount::guider::{Guider, GuiderConfig};
-use mkgp_mount::scalar::Scalar;
+use mkgp_mount::model::guider::{Guider, GuiderConfig};
+use mkgp_mount::model::numeric::scalar::Scalar;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Instant;

@@ -1,10 +1,10 @@
 //! The library's Gaussian-process guider as a [`Controller`].
 
 use crate::controller::Controller;
-use mkgp_mount::guider::{Guider, GuiderConfig};
-use mkgp_mount::scalar::Scalar;
+use mkgp_mount::model::guider::{Guider, GuiderConfig};
+use mkgp_mount::model::numeric::scalar::Scalar;
 
-/// `mkgp_mount::guider::Guider<S, N>`: N = 1 is PPEC, N = 2 the
+/// `mkgp_mount::model::guider::Guider<S, N>`: N = 1 is PPEC, N = 2 the
 /// multi-kernel model; `S` is `f64` (the host reference, the default) or
 /// `f32` (what runs on the target). The simulators work in `f64`: the
 /// measurement is rounded to `S` on the way in and the control widened on

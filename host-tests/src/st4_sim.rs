@@ -1,6 +1,6 @@
 //! The firmware's closed loop (`guide-sim st4`): a virtual mount, a virtual
 //! guide camera and a PHD2-like guider around the real controller code
-//! (`mkgp_mount::st4::St4`, `mkgp_mount::controller::{Guiding, Learner}`).
+//! (`mkgp_mount::mount::st4::St4`, `mkgp_mount::mount::guiding::{Guiding, Learner}`).
 //!
 //! - **Mount.** The RA axis integrates the step rate the controller sets,
 //!   exactly between controller calls (rates are piecewise constant); the
@@ -38,11 +38,11 @@
 use crate::cases::Case;
 use crate::controller::{Controller, Hysteresis};
 use crate::noise::Gaussian;
-use mkgp_mount::controller::{
+use mkgp_mount::mount::config::{Mount, MountConfig, SIDEREAL_ARCSEC_PER_S};
+use mkgp_mount::mount::guiding::{
     FeedForward, Guiding, GuidingCounters, Learner, LearnerCounters, Rates,
 };
-use mkgp_mount::mount::{Mount, MountConfig, SIDEREAL_ARCSEC_PER_S};
-use mkgp_mount::st4::{Line, St4, St4Counters};
+use mkgp_mount::mount::st4::{Line, St4, St4Counters};
 use std::collections::VecDeque;
 
 /// Length of a run, s.
@@ -84,7 +84,7 @@ enum AnyLearner {
 }
 
 impl AnyLearner {
-    fn learn(&mut self, f: mkgp_mount::controller::Frame) -> Option<FeedForward> {
+    fn learn(&mut self, f: mkgp_mount::mount::guiding::Frame) -> Option<FeedForward> {
         match self {
             AnyLearner::None => None,
             AnyLearner::One(l) => Some(l.learn(f)),
@@ -148,7 +148,7 @@ pub struct Rig {
     score_n: u64,
     pub extremes: Extremes,
     /// Every frame the firmware made (for tests).
-    pub frames: Vec<mkgp_mount::controller::Frame>,
+    pub frames: Vec<mkgp_mount::mount::guiding::Frame>,
     /// Every feed-forward installed (for tests): (time us, rate).
     pub feed_forwards: Vec<(u64, f32)>,
 }

@@ -7,9 +7,9 @@
 //! (frames every 2 s, SNR 10), long enough for the model to be blended in;
 //! the bad input is then injected and the loop continues.
 
-use mkgp_mount::grid::{CELL_S, GRID_CELLS};
-use mkgp_mount::guider::{Faults, Guider, GuiderConfig, DITHER_FRAMES};
-use mkgp_mount::scalar::Scalar;
+use mkgp_mount::model::gp::grid::{CELL_S, GRID_CELLS};
+use mkgp_mount::model::guider::{Faults, Guider, GuiderConfig, DITHER_FRAMES};
+use mkgp_mount::model::numeric::scalar::Scalar;
 use std::f64::consts::PI;
 
 const DT: f64 = 2.0;

@@ -32,7 +32,7 @@ use host_tests::closed_loop::{self, Noise};
 use host_tests::controller::Controller;
 use host_tests::data;
 use host_tests::gp::GpController;
-use mkgp_mount::guider::{Guider, GuiderConfig};
+use mkgp_mount::model::guider::{Guider, GuiderConfig};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Mutex, OnceLock};
 

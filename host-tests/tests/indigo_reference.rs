@@ -9,7 +9,7 @@
 //! there are printed, not asserted.
 
 use host_tests::data::{read_text, reference_trace};
-use mkgp_mount::guider::{Guider, GuiderConfig};
+use mkgp_mount::model::guider::{Guider, GuiderConfig};
 
 const OUTPUT_TOLERANCE_PX: f64 = 1e-3;
 const PERIOD_TOLERANCE_REL: f64 = 1e-4;

@@ -35,7 +35,7 @@ use core::f64::consts::PI;
 use core::hint::black_box;
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use cortex_m_semihosting::hprintln;
-use mkgp_mount::guider::{Guider, GuiderConfig};
+use mkgp_mount::model::guider::{Guider, GuiderConfig};
 use support::{exit, Slot};
 
 /// Time between frames (s).

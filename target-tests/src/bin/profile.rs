@@ -19,17 +19,17 @@ mod support;
 use core::hint::black_box;
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use cortex_m_semihosting::hprintln;
-use mkgp_mount::fft::FFT_LEN;
-use mkgp_mount::gp::Gp;
-use mkgp_mount::grid::Grid;
-use mkgp_mount::kernel::Kernel;
-use mkgp_mount::spectrum::Spectrum;
+use mkgp_mount::model::gp::grid::Grid;
+use mkgp_mount::model::gp::infer::Gp;
+use mkgp_mount::model::gp::kernel::Kernel;
+use mkgp_mount::model::spectral::fft::FFT_LEN;
+use mkgp_mount::model::spectral::spectrum::Spectrum;
 use support::{exit, Slot};
 
 static GRID: Slot<Grid<f32>> = Slot::new();
 static GP: Slot<Gp<f32>> = Slot::new();
 static BUF: Slot<[f32; FFT_LEN]> = Slot::new();
-static L: Slot<mkgp_mount::ldlt::Ldlt<f32, 100, 5050>> = Slot::new();
+static L: Slot<mkgp_mount::model::ldlt::Ldlt<f32, 100, 5050>> = Slot::new();
 
 fn g(t: f64) -> f64 {
     let pi2 = 2.0 * core::f64::consts::PI;
@@ -96,7 +96,7 @@ fn main() -> ! {
             p
         );
     }
-    let l = L.init(mkgp_mount::ldlt::Ldlt::new());
+    let l = L.init(mkgp_mount::model::ldlt::Ldlt::new());
     l.set_dim(100);
     for i in 0..100 {
         let row = l.row_mut(i);

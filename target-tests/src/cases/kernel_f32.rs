@@ -1,5 +1,5 @@
 //! The kernel's specialised `f32` functions (`Scalar::exp_nonpositive`,
-//! `Scalar::sin2_scaled`, `mkgp_mount::approx`) and the `f32` kernel built on
+//! `Scalar::sin2_scaled`, `mkgp_mount::model::numeric::approx`) and the `f32` kernel built on
 //! them, against the `f64` implementations (software double on this core).
 //!
 //! Tolerances are the functions' documented bounds: `exp_nonpositive`
@@ -7,8 +7,8 @@
 //! in `f32` (`P` a power of two), plus the rounding of `d / P` otherwise.
 
 use crate::harness::{check, close_abs, close_rel, TestResult};
-use mkgp_mount::kernel::Kernel;
-use mkgp_mount::scalar::Scalar;
+use mkgp_mount::model::gp::kernel::Kernel;
+use mkgp_mount::model::numeric::scalar::Scalar;
 
 const EXP_REL: f64 = 5e-7;
 const SIN2_ABS: f64 = 3e-7;

@@ -9,12 +9,12 @@ use crate::harness::{check, close_abs, TestResult};
 use crate::support::Slot;
 use core::f64::consts::PI;
 use cortex_m_semihosting::hprintln;
-use mkgp_mount::fft::{power_spectrum, FFT_LEN};
-use mkgp_mount::grid::Grid;
-use mkgp_mount::guider::{Guider, GuiderConfig};
-use mkgp_mount::ldlt::{FactorError, Ldlt};
-use mkgp_mount::scalar::Scalar;
-use mkgp_mount::spectrum::{Spectrum, NYQUIST_BIN};
+use mkgp_mount::model::gp::grid::Grid;
+use mkgp_mount::model::guider::{Guider, GuiderConfig};
+use mkgp_mount::model::ldlt::{FactorError, Ldlt};
+use mkgp_mount::model::numeric::scalar::Scalar;
+use mkgp_mount::model::spectral::fft::{power_spectrum, FFT_LEN};
+use mkgp_mount::model::spectral::spectrum::{Spectrum, NYQUIST_BIN};
 
 fn sin64(x: f64) -> f64 {
     <f64 as Scalar>::sin(x)

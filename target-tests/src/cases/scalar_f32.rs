@@ -1,4 +1,4 @@
-//! `mkgp_mount::scalar::Scalar` for `f32` (and `f64`, soft-float here) on
+//! `mkgp_mount::model::numeric::scalar::Scalar` for `f32` (and `f64`, soft-float here) on
 //! the Cortex-M4F.
 //!
 //! Tolerances: sin and cos absolute 1e-6 (a few ulp at unit scale), exp and
@@ -7,7 +7,7 @@
 
 use crate::harness::{check, close_abs, close_rel, TestResult};
 use core::f64::consts::{E, FRAC_PI_2, FRAC_PI_3, FRAC_PI_4, FRAC_PI_6, PI, SQRT_2};
-use mkgp_mount::scalar::Scalar;
+use mkgp_mount::model::numeric::scalar::Scalar;
 
 const TRIG_ABS: f64 = 1e-6;
 const REL: f64 = 1e-6;

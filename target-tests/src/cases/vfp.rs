@@ -1,10 +1,10 @@
-//! The hand-scheduled FPU loops (`mkgp_mount::vfp`) against the portable
+//! The hand-scheduled FPU loops (`mkgp_mount::model::numeric::vfp`) against the portable
 //! code they replace: bit-identical sums for every length around the
 //! four-element passes, on the target where it runs.
 
 use crate::harness::TestResult;
-use mkgp_mount::ldlt::dot_rows_portable;
-use mkgp_mount::vfp::dot_rows;
+use mkgp_mount::model::numeric::dot::dot_rows_portable;
+use mkgp_mount::model::numeric::vfp::dot_rows;
 
 /// xorshift32 values in [-1, 1).
 fn fill(state: &mut u32, out: &mut [f32]) {
@@ -51,8 +51,8 @@ pub fn dot_rows_matches_portable() -> TestResult {
 }
 
 pub fn solve_loops_match_portable() -> TestResult {
-    use mkgp_mount::ldlt::{dot3_portable, sub_scaled3_portable};
-    use mkgp_mount::vfp::{dot3, sub_scaled3};
+    use mkgp_mount::model::numeric::dot::{dot3_portable, sub_scaled3_portable};
+    use mkgp_mount::model::numeric::vfp::{dot3, sub_scaled3};
     let mut state = 0x0bad_cafeu32;
     let mut data = [[0.0f32; 43]; 4];
     for row in &mut data {

@@ -14,10 +14,11 @@
 
 use core::cmp::Ordering;
 
-use crate::grid::{Grid, CELL_S, GRID_CELLS};
-use crate::kernel::Kernel;
-use crate::ldlt::{dot, FactorError, Ldlt};
-use crate::scalar::Scalar;
+use crate::model::gp::grid::{Grid, CELL_S, GRID_CELLS};
+use crate::model::gp::kernel::Kernel;
+use crate::model::ldlt::{FactorError, Ldlt};
+use crate::model::numeric::dot::dot;
+use crate::model::numeric::scalar::Scalar;
 
 /// Cells used for one inference.
 pub const SUBSET: usize = 100;

@@ -4,6 +4,8 @@
 //! what runs on the target (single-precision FPU only).
 
 use core::fmt::Debug;
+
+use super::dot::{self, BLOCK};
 use core::ops::{Add, AddAssign, Div, DivAssign, Mul, MulAssign, Neg, Sub, SubAssign};
 
 /// Arithmetic and the few transcendental functions the model needs.
@@ -36,7 +38,7 @@ pub trait Scalar:
     fn exp(self) -> Self;
     fn sqrt(self) -> Self;
     /// `e^self` for the kernel's exponents, which are `<= 0`. `f64`: exactly
-    /// [`exp`](Self::exp). `f32`: [`crate::approx::exp_nonpositive`], a
+    /// [`exp`](Self::exp). `f32`: [`super::approx::exp_nonpositive`], a
     /// lean version for `[-87, 0]` (relative error < 5e-7) that returns `0`
     /// below `-87`; positive arguments and NaN take the general `exp`.
     fn exp_nonpositive(self) -> Self;
@@ -47,7 +49,7 @@ pub trait Scalar:
     /// `coeff * sin²(π self / P)` with `factor = Self::sin2_factor(P)`: the
     /// periodic part of the kernel's exponent. `f64`: `s = sin(factor *
     /// self)`, then `coeff * s * s`, in that order. `f32`:
-    /// [`crate::approx::sin2_scaled`] (absolute error of `sin²` < 3e-7 for
+    /// [`super::approx::sin2_scaled`] (absolute error of `sin²` < 3e-7 for
     /// `|self / P| < 2^22`).
     fn sin2_scaled(self, factor: Self, coeff: Self) -> Self;
     fn abs(self) -> Self {
@@ -60,18 +62,18 @@ pub trait Scalar:
     fn is_finite(self) -> bool;
     /// Four dot products against a shared vector (the factorisation's
     /// inner loop): `rows[r] · c` over the shortest slice.
-    fn dot_rows(rows: [&[Self]; crate::ldlt::BLOCK], c: &[Self]) -> [Self; crate::ldlt::BLOCK] {
-        crate::ldlt::dot_rows_portable(rows, c)
+    fn dot_rows(rows: [&[Self]; BLOCK], c: &[Self]) -> [Self; BLOCK] {
+        dot::dot_rows_portable(rows, c)
     }
     /// The forward substitution's inner loop for three right-hand sides:
     /// `[l · x, l · y, l · z]` over the shortest slice.
     fn dot3(l: &[Self], x: &[Self], y: &[Self], z: &[Self]) -> [Self; 3] {
-        crate::ldlt::dot3_portable(l, x, y, z)
+        dot::dot3_portable(l, x, y, z)
     }
     /// The back substitution's inner loop for three right-hand sides:
     /// `v[r][k] -= l[k] * f[r]` over the shortest slice.
     fn sub_scaled3(l: &[Self], v: [&mut [Self]; 3], f: [Self; 3]) {
-        crate::ldlt::sub_scaled3_portable(l, v, f)
+        dot::sub_scaled3_portable(l, v, f)
     }
     fn min(self, other: Self) -> Self {
         if other < self {
@@ -151,41 +153,41 @@ impl Scalar for f32 {
         self as f64
     }
     fn sin(self) -> Self {
-        crate::approx::sin(self)
+        super::approx::sin(self)
     }
     fn cos(self) -> Self {
-        crate::approx::cos(self)
+        super::approx::cos(self)
     }
     fn exp(self) -> Self {
-        crate::approx::exp(self)
+        super::approx::exp(self)
     }
     fn sqrt(self) -> Self {
-        crate::approx::sqrt(self)
+        super::approx::sqrt(self)
     }
     #[inline(always)]
     fn exp_nonpositive(self) -> Self {
-        crate::approx::exp_nonpositive(self)
+        super::approx::exp_nonpositive(self)
     }
     fn sin2_factor(period: f64) -> Self {
         (1.0 / period) as f32
     }
     #[inline(always)]
     fn sin2_scaled(self, factor: Self, coeff: Self) -> Self {
-        crate::approx::sin2_scaled(self, factor, coeff)
+        super::approx::sin2_scaled(self, factor, coeff)
     }
     fn is_finite(self) -> bool {
         f32::is_finite(self)
     }
     #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
-    fn dot_rows(rows: [&[Self]; crate::ldlt::BLOCK], c: &[Self]) -> [Self; crate::ldlt::BLOCK] {
-        crate::vfp::dot_rows(rows, c)
+    fn dot_rows(rows: [&[Self]; BLOCK], c: &[Self]) -> [Self; BLOCK] {
+        super::vfp::dot_rows(rows, c)
     }
     #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
     fn dot3(l: &[Self], x: &[Self], y: &[Self], z: &[Self]) -> [Self; 3] {
-        crate::vfp::dot3(l, x, y, z)
+        super::vfp::dot3(l, x, y, z)
     }
     #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
     fn sub_scaled3(l: &[Self], v: [&mut [Self]; 3], f: [Self; 3]) {
-        crate::vfp::sub_scaled3(l, v, f)
+        super::vfp::sub_scaled3(l, v, f)
     }
 }

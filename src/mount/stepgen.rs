@@ -173,7 +173,7 @@ impl PhaseAccumulator {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mount::MountConfig;
+    use crate::mount::config::MountConfig;
     use std::println;
 
     const TICK: u32 = 50_000;

@@ -5,7 +5,7 @@
 //! makes them quasi-periodic. The projection kernel used for prediction drops
 //! the short SE, which only absorbs transient wander while fitting.
 
-use crate::scalar::Scalar;
+use crate::model::numeric::scalar::Scalar;
 
 /// The worm's periodic length scale, natural units (s), as in the
 /// single-kernel model; stages s > 0 use `P_s / STAGE_LENGTH_RATIO` instead.
@@ -191,7 +191,7 @@ mod tests {
 
     #[test]
     fn gram_is_positive_definite() {
-        use crate::ldlt::Ldlt;
+        use crate::model::ldlt::Ldlt;
         let k: Kernel<f64, 2> = Kernel::new(&[288.0, 110.0], &[1.0, 1.0]);
         let mut f: Ldlt<f64, 40, 820> = Ldlt::new();
         f.set_dim(40);

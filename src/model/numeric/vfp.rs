@@ -2,7 +2,7 @@
 //! (`dot_rows`) and the solves' (`dot3`, `sub_scaled3`).
 //!
 //! Factoring the Gram matrix is most of a guide frame, and almost all of it
-//! is four dot products against a shared row ([`crate::ldlt`]). Compiled
+//! is four dot products against a shared row ([`crate::model::ldlt`], [`super::dot`]). Compiled
 //! from Rust, each multiply-add costs about four instructions: a `VLDR` per
 //! operand plus pointer increments, because `VLDR` takes no register offset
 //! and the register allocator never lines operands up for `VLDM`. Here each
@@ -12,9 +12,9 @@
 //! `VMLA.F32` rounds the product before adding, like the portable code's
 //! `acc += a * b` (which LLVM also emits as `VMLA`), and the order of the
 //! additions is the same, so the results are bit-identical to
-//! [`crate::ldlt::dot_rows_portable`].
+//! [`super::dot::dot_rows_portable`].
 
-use crate::ldlt::BLOCK;
+use super::dot::BLOCK;
 
 /// `rows[r] · c` for the four rows, over the shortest slice.
 pub fn dot_rows(rows: [&[f32]; BLOCK], c: &[f32]) -> [f32; BLOCK] {
@@ -83,8 +83,8 @@ pub fn dot_rows(rows: [&[f32]; BLOCK], c: &[f32]) -> [f32; BLOCK] {
 // operand. `VMLA.F32`/`VMLS.F32` round the product before adding, like the
 // portable `s += l * a` and `a -= l * f`, and the order of the operations
 // per element and sum is the same: bit-identical to
-// [`crate::ldlt::dot3_portable`] and [`crate::ldlt::sub_scaled3_portable`].
-/// [`crate::ldlt::dot3_portable`] for `f32`.
+// [`super::dot::dot3_portable`] and [`super::dot::sub_scaled3_portable`].
+/// [`super::dot::dot3_portable`] for `f32`.
 pub fn dot3(l: &[f32], x: &[f32], y: &[f32], z: &[f32]) -> [f32; 3] {
     let n = l.len().min(x.len()).min(y.len()).min(z.len());
     let blocks = n / 4;
@@ -139,7 +139,7 @@ pub fn dot3(l: &[f32], x: &[f32], y: &[f32], z: &[f32]) -> [f32; 3] {
     acc
 }
 
-/// [`crate::ldlt::sub_scaled3_portable`] for `f32`.
+/// [`super::dot::sub_scaled3_portable`] for `f32`.
 pub fn sub_scaled3(l: &[f32], v: [&mut [f32]; 3], f: [f32; 3]) {
     let [x, y, z] = v;
     let n = l.len().min(x.len()).min(y.len()).min(z.len());

@@ -116,9 +116,9 @@
 //! `glitch_us x guide rate` less than asked (7.5 milli-arcsec at 0.5x); C
 //! counts the steps actually made, so the learning is not biased by it.
 
-use crate::guider::{Guider, GuiderConfig, DITHER_FRAMES};
-use crate::mount::{Mount, SIDEREAL_ARCSEC_PER_S};
-use crate::st4::{Axis, Direction, St4Event};
+use crate::model::guider::{Guider, GuiderConfig, DITHER_FRAMES};
+use crate::mount::config::{Mount, SIDEREAL_ARCSEC_PER_S};
+use crate::mount::st4::{Axis, Direction, St4Event};
 
 /// Cadences over which the feed-forward is faded out after a silence.
 pub const FADE_FRAMES: u32 = 5;
@@ -823,7 +823,7 @@ impl<const N: usize> Learner<N> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mount::MountConfig;
+    use crate::mount::config::MountConfig;
 
     fn mount() -> Mount {
         MountConfig::default().validate().unwrap()

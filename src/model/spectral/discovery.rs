@@ -11,10 +11,10 @@
 //! its own period; its evidence gate opens with the line's amplitude
 //! relative to the worm's.
 
-use crate::grid::CELL_S;
-use crate::period::PeriodTracker;
-use crate::scalar::Scalar;
-use crate::spectrum::{bin_period, period_bin, Line, Spectrum, NYQUIST_BIN};
+use crate::model::gp::grid::CELL_S;
+use crate::model::numeric::scalar::Scalar;
+use crate::model::spectral::period::PeriodTracker;
+use crate::model::spectral::spectrum::{bin_period, period_bin, Line, Spectrum, NYQUIST_BIN};
 
 /// Half-width of a notch, relative, in frequency. The paper uses 8 %; that
 /// hides a stage 7 % from a known line's harmonic (C5's 155 s stage beside
@@ -313,8 +313,8 @@ mod tests {
 
     #[test]
     fn scan_finds_the_second_stage_of_a_known_spectrum() {
-        use crate::grid::Grid;
-        use crate::spectrum::Spectrum;
+        use crate::model::gp::grid::Grid;
+        use crate::model::spectral::spectrum::Spectrum;
         // C8's two stages, each with its second harmonic.
         let pi2 = 2.0 * core::f64::consts::PI;
         let g = |t: f64| {
@@ -329,7 +329,7 @@ mod tests {
             grid.push(t, g(t), 1.0);
             t += 2.0;
         }
-        let mut buf = [0.0; crate::fft::FFT_LEN];
+        let mut buf = [0.0; crate::model::spectral::fft::FFT_LEN];
         let spectrum = Spectrum::compute(&grid, &mut buf).unwrap();
         let worm = spectrum.strongest(0, NYQUIST_BIN, |_| true).unwrap();
         assert!((worm.period_s - 288.0).abs() < 3.0, "{worm:?}");

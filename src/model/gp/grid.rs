@@ -18,7 +18,7 @@
 //! Time bookkeeping is `f64`: O(1) work per frame, and it keeps sub-ms
 //! precision over a night also where the model runs in `f32`.
 
-use crate::scalar::Scalar;
+use crate::model::numeric::scalar::Scalar;
 
 /// Number of cells: 2048 x 5 s = 2.8 h of history.
 pub const GRID_CELLS: usize = 2048;

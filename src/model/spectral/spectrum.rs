@@ -5,9 +5,9 @@
 //! The spectrum only changes when the grid completes a cell, so the guider
 //! recomputes it then and reads it on every frame in between.
 
-use crate::fft::{power_spectrum, FFT_LEN};
-use crate::grid::{Grid, CELL_S};
-use crate::scalar::Scalar;
+use crate::model::gp::grid::{Grid, CELL_S};
+use crate::model::numeric::scalar::Scalar;
+use crate::model::spectral::fft::{power_spectrum, FFT_LEN};
 
 /// Highest bin of the one-sided spectrum (Nyquist).
 pub const NYQUIST_BIN: usize = FFT_LEN / 2;

@@ -61,7 +61,7 @@
 //! 1e-5). Parseval's identity holds to 2.4e-15 (`f64`) and 4.2e-8 (`f32`).
 //! The `f64` twiddle table is within 1.1e-16 of libm.
 
-use crate::scalar::Scalar;
+use crate::model::numeric::scalar::Scalar;
 
 /// Number of real input samples.
 pub const FFT_LEN: usize = 4096;

@@ -12,14 +12,14 @@
 //! simulator applies it as `U += control`; INDIGO reports `-control` as its
 //! "correction".
 
-use crate::discovery::Discovery;
-use crate::fft::FFT_LEN;
-use crate::gp::Gp;
-use crate::grid::{Grid, Push, CELL_S, GRID_CELLS};
-use crate::kernel::Kernel;
-use crate::period::PeriodTracker;
-use crate::scalar::Scalar;
-use crate::spectrum::{Spectrum, NYQUIST_BIN};
+use crate::model::gp::grid::{Grid, Push, CELL_S, GRID_CELLS};
+use crate::model::gp::infer::Gp;
+use crate::model::gp::kernel::Kernel;
+use crate::model::numeric::scalar::Scalar;
+use crate::model::spectral::discovery::Discovery;
+use crate::model::spectral::fft::FFT_LEN;
+use crate::model::spectral::period::PeriodTracker;
+use crate::model::spectral::spectrum::{Spectrum, NYQUIST_BIN};
 
 /// Frames of proportional control without learning after a dither.
 pub const DITHER_FRAMES: u8 = 10;

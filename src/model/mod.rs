@@ -1,0 +1,13 @@
+//! The gear-error model: the multi-kernel Gaussian process of the paper,
+//! generic over the scalar type so that the same code runs in `f64` (the
+//! reference) and in `f32` (the target).
+//!
+//! Layers, each using only those above it: [`numeric`], then [`ldlt`] (linear
+//! algebra), [`spectral`] and [`gp`], and on top the [`guider`], which turns
+//! frames into controls and predictions.
+
+pub mod gp;
+pub mod guider;
+pub mod ldlt;
+pub mod numeric;
+pub mod spectral;

@@ -1,0 +1,8 @@
+//! The mount: its configuration and derived rates, step generation, the ST4
+//! guide port's state machine, and the controller that turns pulses and the
+//! model's feed-forward into step rates and guide frames.
+
+pub mod config;
+pub mod guiding;
+pub mod st4;
+pub mod stepgen;
