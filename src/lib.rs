@@ -7,5 +7,6 @@
 // standard library's collections and printing on the host.
 #![cfg_attr(not(test), no_std)]
 
+pub mod control_loop;
 pub mod model;
 pub mod mount;

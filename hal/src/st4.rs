@@ -6,7 +6,7 @@
 //! (below, on `EXTI9_5` and `EXTI15_10`, the vectors of every board's ST4
 //! lines) stamps the time with `embassy_time::Instant::now()` (1 µs ticks)
 //! *in the interrupt*, so the timestamp does not depend on when a task gets
-//! to run, and pushes a [`RawEdge`] into a queue that one task drains with
+//! to run, and pushes a [`PinEdge`] into a queue that one task drains with
 //! [`St4Edges::next`].
 //!
 //! The handler tracks levels rather than trusting edge flags: it clears the
@@ -18,11 +18,12 @@
 //! discarded as a glitch anyway.
 //!
 //! What the edges mean (debounce, pulses, both lines of an axis at once, the
-//! cap) is decided by the library's `mkgp_mount::mount::st4::St4`, which the
-//! firmware feeds with these edges. This crate does not depend on the
-//! library: the firmware package depends on this one, and a dependency back
-//! would be a package cycle, so the mapping from [`St4Line`] to the library's
-//! `Line` lives in the firmware's `main.rs`.
+//! cap, resynchronising after a loss) is decided by the library
+//! (`mkgp_mount::control_loop`), which the firmware feeds with these edges.
+//! This crate does not depend on the library: the firmware package depends
+//! on this one, and a dependency back would be a package cycle. So an edge
+//! names its input by index, in the order of [`St4Pins`](crate::board::St4Pins)
+//! (RA+, RA-, Dec+, Dec-), the order of the library's `Line::ALL`.
 //!
 //! Interrupt priority: both EXTI vectors run at [`EXTI_PRIORITY`] (`P1`),
 //! below the step timer (`P0`) and above the high-priority executor.
@@ -52,35 +53,13 @@ pub const EXTI_PRIORITY: Priority = Priority::P1;
 /// few times per guide cycle; 32 covers a burst of contact bounce.
 pub const QUEUE_LEN: usize = 32;
 
-/// One of the four ST4 lines, in the order of the port's signals.
+/// A level change of one input: `index` is its place in
+/// [`St4Pins`](crate::board::St4Pins) (0 RA+, 1 RA-, 2 Dec+, 3 Dec-),
+/// `asserted` the new level (true = pulled low by the camera), `at_us` the
+/// embassy-time instant of the interrupt in microseconds since boot.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
-pub enum St4Line {
-    /// RA+ (west): RA faster than sidereal.
-    RaPlus = 0,
-    /// RA- (east): RA slower than sidereal.
-    RaMinus = 1,
-    /// Dec+ (north).
-    DecPlus = 2,
-    /// Dec- (south).
-    DecMinus = 3,
-}
-
-impl St4Line {
-    /// The four lines, indexed as in [`St4Edges::levels`].
-    pub const ALL: [St4Line; 4] = [
-        St4Line::RaPlus,
-        St4Line::RaMinus,
-        St4Line::DecPlus,
-        St4Line::DecMinus,
-    ];
-}
-
-/// A level change of one line: `asserted` is the new level (true = pulled
-/// low by the camera), `at_us` the embassy-time instant of the interrupt in
-/// microseconds since boot.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
-pub struct RawEdge {
-    pub line: St4Line,
+pub struct PinEdge {
+    pub index: u8,
     pub asserted: bool,
     pub at_us: u64,
 }
@@ -93,7 +72,7 @@ struct Inputs {
 
 static INPUTS: Mutex<CriticalSectionRawMutex, RefCell<Option<Inputs>>> =
     Mutex::new(RefCell::new(None));
-static EDGES: Channel<CriticalSectionRawMutex, RawEdge, QUEUE_LEN> = Channel::new();
+static EDGES: Channel<CriticalSectionRawMutex, PinEdge, QUEUE_LEN> = Channel::new();
 /// Edges lost because the queue was full.
 static DROPPED: AtomicU32 = AtomicU32::new(0);
 /// Bit i set: line i is asserted (as last seen by the interrupt).
@@ -106,12 +85,12 @@ pub struct St4Edges {
 
 impl St4Edges {
     /// The next edge, in the order they occurred.
-    pub async fn next(&mut self) -> RawEdge {
+    pub async fn next(&mut self) -> PinEdge {
         EDGES.receive().await
     }
 
     /// The next edge if one is queued.
-    pub fn try_next(&mut self) -> Option<RawEdge> {
+    pub fn try_next(&mut self) -> Option<PinEdge> {
         EDGES.try_receive().ok()
     }
 
@@ -121,8 +100,8 @@ impl St4Edges {
         DROPPED.load(Ordering::Relaxed)
     }
 
-    /// The level of each line as last seen by the interrupt handler, indexed
-    /// like [`St4Line::ALL`] (true = asserted).
+    /// The level of each input as last seen by the interrupt handler, indexed
+    /// like [`PinEdge::index`] (true = asserted).
     pub fn levels(&self) -> [bool; 4] {
         let bits = LEVELS.load(Ordering::Relaxed);
         [bits & 1 != 0, bits & 2 != 0, bits & 4 != 0, bits & 8 != 0]
@@ -190,8 +169,8 @@ fn on_exti() {
             }
             if asserted != inputs.asserted[i] {
                 inputs.asserted[i] = asserted;
-                let edge = RawEdge {
-                    line: St4Line::ALL[i],
+                let edge = PinEdge {
+                    index: i as u8,
                     asserted,
                     at_us,
                 };

@@ -1,23 +1,11 @@
 //! Stepper drivers: STEP/DIR/ENABLE outputs and the step tick timer.
 //!
 //! Steps are produced in software from a periodic timer interrupt (the
-//! *tick*, [`StepTicker`], on TIM2 at `step_tick_hz`, 50 kHz by default):
-//! on each tick the firmware advances each axis' phase accumulator
-//! (`mkgp_mount::mount::stepgen::PhaseAccumulator`, integer only) and hands the
-//! result to that axis' [`StepAxis::tick`], which drives the pins. Timing of
-//! the outputs, in ticks (20 µs at 50 kHz):
-//!
-//! - STEP is high for exactly one tick and low for at least one tick, so the
-//!   highest step rate is half the tick rate (25 kHz), the limit
-//!   `MountConfig::validate` enforces. A4988 needs 1 µs high / 1 µs low,
-//!   DRV8825 1.9 µs / 1.9 µs, TMC2209 100 ns: 20 µs is ample.
-//! - DIR changes one tick before the STEP rising edge that needs it (set-up
-//!   time 20 µs; drivers need 20-650 ns) and never while STEP is high (hold).
-//! - A step that cannot go out on the tick it is due (STEP still high, or DIR
-//!   about to change) is owed and goes out on the next free tick; a step due
-//!   in the opposite direction cancels an owed one. The emitted count is what
-//!   [`StepAxis::tick`] returns, so the position the firmware keeps is the
-//!   motor's, step for step.
+//! *tick*, [`StepTicker`], on TIM2 at `step_tick_hz`, 50 kHz by default). On
+//! each tick the firmware asks the library's `AxisStepper` (step generation
+//! and the STEP/DIR waveform: STEP high one tick, DIR a tick ahead, owed
+//! steps) what to change, and makes the change with [`StepAxis::set_step`]
+//! or [`StepAxis::set_dir`]. This crate decides nothing about steps.
 //!
 //! ENABLE is active low on A4988, DRV8825 and TMC2209 boards (all three
 //! boards' tables in [`crate::board`] wire it so): the outputs start with the
@@ -32,8 +20,8 @@
 //! for hardware step generation later.
 //!
 //! The interrupt handler itself lives in the firmware (`main.rs`, `fn TIM2`):
-//! it owns the phase accumulators of the library, which this crate does not
-//! depend on (see [`crate::st4`] for why).
+//! it owns the library's steppers, which this crate does not depend on (see
+//! [`crate::st4`] for why).
 
 use embassy_stm32::gpio::{Level, Output, Pin, Speed};
 use embassy_stm32::interrupt;
@@ -50,17 +38,13 @@ pub const TICK_PRIORITY: Priority = Priority::P0;
 /// The timer peripheral of the step tick; its interrupt vector is `TIM2`.
 pub type StepTimer = TIM2;
 
-/// One stepper driver's outputs and its pulse state.
+/// One stepper driver's outputs.
 pub struct StepAxis {
     step: Output<'static>,
     dir: Output<'static>,
     enable: Output<'static>,
     /// DIR level meaning "forward" (positive steps).
     forward_level: Level,
-    step_high: bool,
-    dir_forward: bool,
-    /// Steps due but not yet emitted (signed: positive = forward).
-    owed: i32,
 }
 
 impl StepAxis {
@@ -78,9 +62,6 @@ impl StepAxis {
             dir: Output::new(pins.dir, forward_level, Speed::Low),
             enable: Output::new(pins.enable, Level::High, Speed::Low),
             forward_level,
-            step_high: false,
-            dir_forward: true,
-            owed: 0,
         }
     }
 
@@ -90,44 +71,17 @@ impl StepAxis {
             .set_level(if on { Level::Low } else { Level::High });
     }
 
-    /// One tick: `due` is the accumulator's output (`Some(forward)` when a
-    /// step is due). Returns the step emitted on this tick: +1, -1 or 0.
+    /// Drives STEP.
     #[inline]
-    pub fn tick(&mut self, due: Option<bool>) -> i32 {
-        match due {
-            Some(true) => self.owed += 1,
-            Some(false) => self.owed -= 1,
-            None => {}
-        }
-        if self.step_high {
-            self.step.set_low();
-            self.step_high = false;
-            return 0;
-        }
-        if self.owed == 0 {
-            return 0;
-        }
-        let forward = self.owed > 0;
-        if forward != self.dir_forward {
-            self.dir_forward = forward;
-            let high = forward == (self.forward_level == Level::High);
-            self.dir.set_level(Level::from(high));
-            return 0;
-        }
-        self.step.set_high();
-        self.step_high = true;
-        if forward {
-            self.owed -= 1;
-            1
-        } else {
-            self.owed += 1;
-            -1
-        }
+    pub fn set_step(&mut self, high: bool) {
+        self.step.set_level(Level::from(high));
     }
 
-    /// Steps due but not yet emitted (at most a few at any time).
-    pub fn owed(&self) -> i32 {
-        self.owed
+    /// Drives DIR for forward (true) or backward steps.
+    #[inline]
+    pub fn set_dir(&mut self, forward: bool) {
+        let high = forward == (self.forward_level == Level::High);
+        self.dir.set_level(Level::from(high));
     }
 }
 

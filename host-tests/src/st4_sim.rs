@@ -1,48 +1,55 @@
 //! The firmware's closed loop (`guide-sim st4`): a virtual mount, a virtual
-//! guide camera and a PHD2-like guider around the real controller code
-//! (`mkgp_mount::mount::st4::St4`, `mkgp_mount::mount::guiding::{Guiding, Learner}`).
+//! guide camera and a PHD2-like guider around the firmware's own loop
+//! (`mkgp_mount::control_loop::ControlLoop`, driven as the board's guiding
+//! task drives it) and its step generation (`AxisStepper`), with the
+//! learner (`Learner`) as the board's learning task runs it.
 //!
-//! - **Mount.** The RA axis integrates the step rate the controller sets,
-//!   exactly between controller calls (rates are piecewise constant); the
-//!   step count given to the controller and used for the pointing is the
-//!   integer part (step quantisation is modelled, 0.06-0.08 arcsec per step
-//!   here; the phase accumulator's sub-tick timing is not). Gear time is
-//!   steps / sidereal steps per second, and the RA pointing error is
-//!   `p = g(gear time) - C`, with `g` the synthetic case's gear error (1 px =
-//!   1 arcsec) and `C` the steps beyond sidereal tracking in arcsec: the lag
-//!   of the axis behind the sky. The mount is the default EQ6-class one
+//! - **Mount.** Each axis is the firmware's `AxisStepper`, advanced by the
+//!   ticks of the step timer (`step_tick_hz`) between events, in closed
+//!   form (exactly the steps the generator makes due tick by tick; the
+//!   STEP/DIR waveform's hold of a step around a reversal is not modelled).
+//!   The mount moves by the steps emitted: gear time is RA steps / sidereal
+//!   steps per second, and the RA pointing error is `p = g(gear time) - C`,
+//!   with `g` the synthetic case's gear error (1 px = 1 arcsec) and `C` the
+//!   steps beyond sidereal tracking in arcsec: the lag of the axis behind
+//!   the sky. The mount is the default EQ6-class one
 //!   (`MountConfig::default()`) with the worm period set to the case's first
 //!   sinusoid (432 s, 288 s for C8), so the firmware's prior is its worm.
-//! - **Time.** A 10 ms tick, split at every ST4 edge, ST4 deadline and
-//!   feed-forward installation, so that pulses are resolved to the
-//!   microsecond. At every tick the controller is called (`rates`) and the
-//!   pointing is sampled.
+//! - **Guiding task.** Wakes on every raw ST4 edge and at the loop's
+//!   `next_wake_us` (ST4 deadlines, the periodic rate update), exactly as on
+//!   the board: `ControlLoop::wake` with the edges, the time, the RA step
+//!   count and the newest feed-forward; the rates it returns are set on the
+//!   steppers; completed frames move to a queue of `FRAME_QUEUE` while it
+//!   has room.
+//! - **Learning task.** Takes one frame at a time from that queue and runs
+//!   `Learner::learn`; its feed-forward is ready [`INFERENCE_US`] later (the
+//!   model's time on the target) and is installed at the guiding task's
+//!   next wake-up. Guider only: no learner, the firmware tracks and obeys
+//!   the pulses.
 //! - **Camera.** Back-to-back exposures of 2 s ending at t = 2, 4, ... s;
-//!   the measurement is the mean of the pointing over the exposure (the 10 ms
-//!   samples), minus the lock position, plus N(0, noise) from the
-//!   design's generator (one per run and seed).
+//!   the measurement is the mean of the pointing over the exposure (10 ms
+//!   samples), minus the lock position, plus N(0, noise) from the paper's
+//!   generator (one per run and seed).
 //! - **Guider.** PHD2's hysteresis (aggressiveness 0.7, hysteresis 0.1, min
 //!   move 0.2) turns the measurement into a correction; the pulse lasts
 //!   correction / guide rate (0.5x sidereal, 7.52 arcsec/s), at most 2.5 s,
 //!   on RA+ for a positive correction (the star lags: faster) and RA- for a
 //!   negative one. It starts [`LATENCY_US`] after the exposure ends (after
-//!   the previous pulse if that is still running) as raw line edges fed to
-//!   `St4::edge`.
-//! - **Firmware.** `St4::poll` -> `Guiding::on_event`; each frame from
-//!   `Guiding::take_frame` goes to `Learner::learn`, whose feed-forward is
-//!   installed [`INFERENCE_US`] later (the model's time on the target).
-//!   Guider only: no learner, the firmware tracks and obeys the pulses.
+//!   the previous pulse if that is still running) as raw line edges.
 //! - **Score.** RMS of the pointing error (10 ms samples) over the final two
 //!   thirds, t >= 3600 s of the 10 800 s run.
 
 use crate::cases::Case;
 use crate::controller::{Controller, Hysteresis};
 use crate::noise::Gaussian;
+use mkgp_mount::control_loop::st4_feed::{EdgeQueue, EdgeSource, RawEdge};
+use mkgp_mount::control_loop::stepping::AxisStepper;
+use mkgp_mount::control_loop::{ControlLoop, FrameRecord};
 use mkgp_mount::mount::config::{Mount, MountConfig, SIDEREAL_ARCSEC_PER_S};
 use mkgp_mount::mount::guiding::{
-    FeedForward, Guiding, GuidingCounters, Learner, LearnerCounters, Rates,
+    FeedForward, Frame, Guiding, GuidingCounters, Learner, LearnerCounters, Rates, FRAME_QUEUE,
 };
-use mkgp_mount::mount::st4::{Line, St4, St4Counters};
+use mkgp_mount::mount::st4::{Line, St4Counters};
 use std::collections::VecDeque;
 
 /// Length of a run, s.
@@ -51,11 +58,11 @@ pub const RUN_S: f64 = 10_800.0;
 pub const SCORE_FROM_S: f64 = 3_600.0;
 /// Exposure and guide cadence, s.
 pub const EXPOSURE_S: f64 = 2.0;
-/// Simulation tick, us.
-pub const TICK_US: u64 = 10_000;
+/// Pointing sample interval, us.
+pub const SAMPLE_US: u64 = 10_000;
 /// From the end of an exposure to the start of its pulse, us.
 pub const LATENCY_US: u64 = 20_000;
-/// From a frame to the installation of its feed-forward, us.
+/// From the start of a frame's inference to its feed-forward, us.
 pub const INFERENCE_US: u64 = 50_000;
 /// Longest guide pulse the guider sends (PHD2's max RA duration), us.
 pub const MAX_PULSE_US: u64 = 2_500_000;
@@ -84,7 +91,7 @@ enum AnyLearner {
 }
 
 impl AnyLearner {
-    fn learn(&mut self, f: mkgp_mount::mount::guiding::Frame) -> Option<FeedForward> {
+    fn learn(&mut self, f: Frame) -> Option<FeedForward> {
         match self {
             AnyLearner::None => None,
             AnyLearner::One(l) => Some(l.learn(f)),
@@ -118,20 +125,85 @@ pub struct Extremes {
     pub non_finite: u32,
 }
 
+/// The raw edges due by a wake-up, as the hal's queue would hold them (the
+/// simulated queue never overflows).
+struct DueEdges<'a> {
+    edges: &'a mut VecDeque<(u64, Line, bool)>,
+    now_us: u64,
+    levels: &'a mut [bool; 4],
+}
+
+impl EdgeSource for DueEdges<'_> {
+    fn next_edge(&mut self) -> Option<RawEdge> {
+        let &(at_us, line, asserted) = self.edges.front()?;
+        if at_us > self.now_us {
+            return None;
+        }
+        self.edges.pop_front();
+        self.levels[line as usize] = asserted;
+        Some(RawEdge {
+            line,
+            asserted,
+            at_us,
+        })
+    }
+
+    fn queue(&self) -> EdgeQueue {
+        EdgeQueue {
+            dropped: 0,
+            levels: *self.levels,
+        }
+    }
+}
+
+/// The learning task: one frame at a time, each taking [`INFERENCE_US`].
+struct LearningTask {
+    learner: AnyLearner,
+    /// The frame queue between the tasks.
+    frames: VecDeque<FrameRecord>,
+    /// The feed-forward being computed and when it is ready.
+    busy: Option<(u64, Option<FeedForward>)>,
+    /// The newest feed-forward not yet installed (the board's signal).
+    ready: Option<FeedForward>,
+}
+
+impl LearningTask {
+    /// Finishes the inference due by `now_us`, then starts the next.
+    fn run(&mut self, now_us: u64, record: &mut Vec<Frame>) {
+        if let Some((done_us, ff)) = self.busy {
+            if done_us > now_us {
+                return;
+            }
+            self.busy = None;
+            if ff.is_some() {
+                self.ready = ff;
+            }
+        }
+        if let Some(r) = self.frames.pop_front() {
+            record.push(r.frame);
+            let ff = self.learner.learn(r.frame);
+            self.busy = Some((now_us + INFERENCE_US, ff));
+        }
+    }
+
+    fn next_event_us(&self) -> Option<u64> {
+        self.busy.map(|(t, _)| t)
+    }
+}
+
 /// The virtual rig: mount, camera, guider and the firmware.
 pub struct Rig {
     pub mount: Mount,
     pub case: Case,
-    pub st4: St4,
-    pub guiding: Guiding,
-    learner: AnyLearner,
+    control: ControlLoop,
+    ra: AxisStepper,
+    dec: AxisStepper,
+    learning: LearningTask,
     pub now_us: u64,
-    ra_pos: f64,
-    dec_pos: f64,
     rates: Rates,
     /// Raw edges still to come, sorted by time.
     edges: VecDeque<(u64, Line, bool)>,
-    pending_ff: VecDeque<(u64, FeedForward)>,
+    levels: [bool; 4],
     /// The guider: its hysteresis, noise, whether it answers at all.
     hysteresis: Hysteresis,
     noise: Option<(f64, Gaussian)>,
@@ -147,8 +219,8 @@ pub struct Rig {
     score_sq: f64,
     score_n: u64,
     pub extremes: Extremes,
-    /// Every frame the firmware made (for tests).
-    pub frames: Vec<mkgp_mount::mount::guiding::Frame>,
+    /// Every frame the learner took (for tests).
+    pub frames: Vec<Frame>,
     /// Every feed-forward installed (for tests): (time us, rate).
     pub feed_forwards: Vec<(u64, f32)>,
 }
@@ -171,19 +243,28 @@ impl Rig {
             Firmware::Ppec => AnyLearner::One(Box::new(Learner::new(&mount))),
             Firmware::Mkgp => AnyLearner::Two(Box::new(Learner::new(&mount))),
         };
-        let c = mount.config();
-        Rig {
-            st4: St4::new(c.glitch_us, c.pulse_cap_us),
-            guiding: Guiding::new(&mount),
+        let tick_hz = mount.config().step_tick_hz;
+        let mut ra = AxisStepper::new(mount.max_ra_steps_per_s(), tick_hz);
+        let mut dec = AxisStepper::new(mount.max_dec_steps_per_s(), tick_hz);
+        let (control, rates) = ControlLoop::start(&mount, 0, 0);
+        ra.set_rate(rates.ra_steps_per_s);
+        dec.set_rate(rates.dec_steps_per_s);
+        let mut rig = Rig {
+            control,
+            ra,
+            dec,
             mount,
             case: case.clone(),
-            learner,
+            learning: LearningTask {
+                learner,
+                frames: VecDeque::new(),
+                busy: None,
+                ready: None,
+            },
             now_us: 0,
-            ra_pos: 0.0,
-            dec_pos: 0.0,
             rates: Rates::default(),
             edges: VecDeque::new(),
-            pending_ff: VecDeque::new(),
+            levels: [false; 4],
             hysteresis: Hysteresis::phd2_baseline(),
             noise: (noise_px > 0.0).then(|| (noise_px, Gaussian::new(seed))),
             guider_on: true,
@@ -202,31 +283,39 @@ impl Rig {
             },
             frames: Vec::new(),
             feed_forwards: Vec::new(),
-        }
+        };
+        rig.note_rates(rates);
+        rig
     }
 
     pub fn learner_counters(&self) -> LearnerCounters {
-        self.learner.counters()
+        self.learning.learner.counters()
     }
 
     pub fn guiding_counters(&self) -> GuidingCounters {
-        self.guiding.counters()
+        self.control.guiding().counters()
     }
 
     pub fn st4_counters(&self) -> St4Counters {
-        self.st4.counters()
+        self.control.st4_counters()
     }
 
+    /// The firmware's guiding state (feed-forward, silence).
+    pub fn guiding(&self) -> &Guiding {
+        self.control.guiding()
+    }
+
+    /// The rates the loop asked for last.
     pub fn rates(&self) -> Rates {
         self.rates
     }
 
     pub fn ra_steps(&self) -> i64 {
-        self.ra_pos.floor() as i64
+        self.ra.steps()
     }
 
     pub fn dec_steps(&self) -> i64 {
-        self.dec_pos.floor() as i64
+        self.dec.steps()
     }
 
     /// The applied correction C (steps beyond sidereal, arcsec) now.
@@ -266,18 +355,15 @@ impl Rig {
         self.dither_next = Some(amount_arcsec);
     }
 
+    /// The next time anything happens: a wake-up of the guiding task (an
+    /// edge, or the loop's own), the learner finishing, or a sample.
     fn next_event_us(&self, end_us: u64) -> u64 {
-        let tick = (self.now_us / TICK_US + 1) * TICK_US;
-        let mut t = tick.min(end_us);
+        let sample = (self.now_us / SAMPLE_US + 1) * SAMPLE_US;
+        let mut t = sample.min(end_us).min(self.control.next_wake_us());
         if let Some(&(at, _, _)) = self.edges.front() {
             t = t.min(at);
         }
-        if let Some(d) = self.st4.next_deadline_us() {
-            if d > self.now_us {
-                t = t.min(d);
-            }
-        }
-        if let Some(&(at, _)) = self.pending_ff.front() {
+        if let Some(at) = self.learning.next_event_us() {
             t = t.min(at);
         }
         t.max(self.now_us + 1)
@@ -287,44 +373,56 @@ impl Rig {
     pub fn run_until(&mut self, end_us: u64) {
         while self.now_us < end_us {
             let t = self.next_event_us(end_us);
-            let dt = (t - self.now_us) as f64 * 1e-6;
-            self.ra_pos += self.rates.ra_steps_per_s as f64 * dt;
-            self.dec_pos += self.rates.dec_steps_per_s as f64 * dt;
+            self.advance_steppers(t);
             self.now_us = t;
-            self.controller_step();
-            if t % TICK_US == 0 {
+            self.learning.run(t, &mut self.frames);
+            let edge_due = self.edges.front().is_some_and(|e| e.0 <= t);
+            if edge_due || t >= self.control.next_wake_us() {
+                self.guiding_task();
+                self.learning.run(t, &mut self.frames);
+            }
+            if t % SAMPLE_US == 0 {
                 self.sample();
             }
         }
     }
 
-    fn controller_step(&mut self) {
+    /// The step ticks in (now, t].
+    fn advance_steppers(&mut self, t: u64) {
+        let hz = u128::from(self.ra.tick_hz());
+        let ticks_by = |us: u64| (u128::from(us) * hz / 1_000_000) as u64;
+        let ticks = ticks_by(t) - ticks_by(self.now_us);
+        self.ra.advance(ticks);
+        self.dec.advance(ticks);
+    }
+
+    /// One wake-up of the board's guiding task.
+    fn guiding_task(&mut self) {
         let now = self.now_us;
-        while let Some(&(at, line, asserted)) = self.edges.front() {
-            if at > now {
-                break;
-            }
-            self.edges.pop_front();
-            self.st4.edge(line, asserted, at);
-        }
-        while let Some(ev) = self.st4.poll(now) {
-            self.guiding.on_event(ev);
-        }
-        while let Some(f) = self.guiding.take_frame() {
-            self.frames.push(f);
-            if let Some(ff) = self.learner.learn(f) {
-                self.pending_ff.push_back((now + INFERENCE_US, ff));
-            }
-        }
-        while let Some(&(at, ff)) = self.pending_ff.front() {
-            if at > now {
-                break;
-            }
-            self.pending_ff.pop_front();
-            self.guiding.set_feed_forward(ff);
+        let mut due = DueEdges {
+            edges: &mut self.edges,
+            now_us: now,
+            levels: &mut self.levels,
+        };
+        let ff = self.learning.ready.take();
+        let wake = self.control.wake(now, self.ra.steps(), &mut due, ff);
+        if let Some(ff) = ff {
             self.feed_forwards.push((now, ff.rate_arcsec_per_s));
         }
-        let r = self.guiding.rates(now, self.ra_steps());
+        if let Some(r) = wake.rates {
+            self.ra.set_rate(r.ra_steps_per_s);
+            self.dec.set_rate(r.dec_steps_per_s);
+            self.note_rates(r);
+        }
+        while self.learning.frames.len() < FRAME_QUEUE {
+            let Some(record) = self.control.take_frame() else {
+                break;
+            };
+            self.learning.frames.push_back(record);
+        }
+    }
+
+    fn note_rates(&mut self, r: Rates) {
         let e = &mut self.extremes;
         if !(r.ra_steps_per_s.is_finite() && r.dec_steps_per_s.is_finite()) {
             e.non_finite += 1;
@@ -335,7 +433,7 @@ impl Rig {
         self.rates = r;
     }
 
-    /// The 10 ms sample: score, exposure, and the guider at the end of an
+    /// The pointing sample: score, exposure, and the guider at the end of an
     /// exposure.
     fn sample(&mut self) {
         let p = self.pointing_arcsec();

@@ -194,7 +194,7 @@ fn guider_silence() {
     // 1 px noise the guider pulses nearly every frame until it stops.
     let mut r = Rig::new(&case("C1"), Firmware::Ppec, 1.0, 1);
     r.run_until(2000 * S);
-    assert!(r.guiding.feed_forward_now() != 0.0);
+    assert!(r.guiding().feed_forward_now() != 0.0);
     let silences_before = r.guiding_counters().silences;
     r.guider_on = false;
     let quiet_from = r.now_us;
@@ -202,18 +202,18 @@ fn guider_silence() {
     r.run_until(quiet_from + worm - 5 * S);
     let g = r.guiding_counters();
     assert_eq!(g.silences, silences_before + 1, "{g:?}");
-    assert!(r.guiding.silent());
+    assert!(r.guiding().silent());
     // Feed-forward still extrapolated by the model (unmeasured frames).
-    assert!(r.guiding.feed_forward_now() != 0.0);
+    assert!(r.guiding().feed_forward_now() != 0.0);
     assert!(g.unmeasured_frames > 100);
     r.run_until(quiet_from + worm + 12 * S);
-    assert_eq!(r.guiding.feed_forward_now(), 0.0);
+    assert_eq!(r.guiding().feed_forward_now(), 0.0);
     assert_eq!(r.guiding_counters().feed_forward_faded, 1);
     // The guider comes back: learning and feed-forward resume.
     r.guider_on = true;
     r.run_until(r.now_us + 100 * S);
-    assert!(!r.guiding.silent());
-    assert!(r.guiding.feed_forward_now() != 0.0);
+    assert!(!r.guiding().silent());
+    assert!(r.guiding().feed_forward_now() != 0.0);
     assert_rates_sane(&r);
 }
 

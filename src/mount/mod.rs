@@ -5,4 +5,5 @@
 pub mod config;
 pub mod guiding;
 pub mod st4;
+pub mod step_pulse;
 pub mod stepgen;

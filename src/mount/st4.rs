@@ -72,13 +72,17 @@ pub enum Direction {
 /// sidereal; RA- = slower; Dec+ = north.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Line {
-    RaPlus,
-    RaMinus,
-    DecPlus,
-    DecMinus,
+    RaPlus = 0,
+    RaMinus = 1,
+    DecPlus = 2,
+    DecMinus = 3,
 }
 
 impl Line {
+    /// The four lines in the order of the port's signals; the hal numbers
+    /// its inputs the same way (`hal::board::St4Pins`).
+    pub const ALL: [Line; 4] = [Line::RaPlus, Line::RaMinus, Line::DecPlus, Line::DecMinus];
+
     /// The axis the line guides.
     pub fn axis(self) -> Axis {
         match self {

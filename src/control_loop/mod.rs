@@ -1,0 +1,157 @@
+//! The firmware's loop as a sans-IO step: what the board's guiding task and
+//! step tick decide, without the hardware. The board (`src/main.rs`) and the
+//! simulator (`host-tests`' `guide-sim st4`) drive the same code.
+//!
+//! - [`ControlLoop::wake`]: raw ST4 edges, the time, the RA step count, the
+//!   edge queue's loss counter and the newest feed-forward in; the step
+//!   rates to set, the events to log and the counters out. Completed guide
+//!   frames wait in the loop until the caller has room for them
+//!   ([`ControlLoop::take_frame`]): a learner that falls behind loses the
+//!   oldest frames, counted, and never blocks the loop.
+//! - [`ControlLoop::next_wake_us`]: when to wake next if no edge comes (an
+//!   ST4 deadline, or the periodic rate update).
+//! - [`stepping::AxisStepper`]: the step tick of one axis.
+//!
+//! The learner (the model) runs elsewhere, at lower priority: it takes the
+//! frames and returns a [`FeedForward`], which the next wake-up installs.
+
+pub mod st4_feed;
+pub mod stepping;
+
+use heapless::Vec;
+
+use crate::mount::config::Mount;
+use crate::mount::guiding::{FeedForward, Frame, Guiding, GuidingCounters, Rates};
+use crate::mount::st4::{St4Counters, St4Event};
+use st4_feed::{EdgeSource, St4Feed};
+
+/// The rates are recomputed and set at least this often (µs): the
+/// feed-forward and the applied correction change continuously.
+pub const RATE_UPDATE_US: u64 = 10_000;
+/// Events one wake-up reports for logging (the rest are counted).
+pub const LOG_EVENTS: usize = 4;
+
+/// A completed guide frame for the learner, with the counters at the time
+/// it was taken (logged with it).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameRecord {
+    pub frame: Frame,
+    pub st4: St4Counters,
+    pub guiding: GuidingCounters,
+}
+
+/// What one wake-up decided.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Wake {
+    /// Set these rates now (on an event, a new feed-forward, or the periodic
+    /// update).
+    pub rates: Option<Rates>,
+    /// The first [`LOG_EVENTS`] ST4 events, to log after the rates are set.
+    pub events: Vec<St4Event, LOG_EVENTS>,
+    /// Events beyond those.
+    pub more_events: usize,
+    /// Edges newly lost to a full queue (the levels were resynchronised).
+    pub lost_edges: u32,
+    /// The ST4 counters, when they changed or an event came.
+    pub st4_counters: Option<St4Counters>,
+}
+
+/// The guiding side of the firmware: ST4 in, rates and frames out.
+pub struct ControlLoop {
+    feed: St4Feed,
+    guiding: Guiding,
+    next_update_us: u64,
+    last_counters: St4Counters,
+}
+
+impl ControlLoop {
+    /// The loop for `mount`, at time `now_us` with the RA axis at
+    /// `ra_steps`; returns it and the rates to start with (tracking).
+    pub fn start(mount: &Mount, now_us: u64, ra_steps: i64) -> (Self, Rates) {
+        let c = mount.config();
+        let mut guiding = Guiding::new(mount);
+        let rates = guiding.rates(now_us, ra_steps);
+        let lp = ControlLoop {
+            feed: St4Feed::new(c.glitch_us, c.pulse_cap_us),
+            guiding,
+            next_update_us: now_us.saturating_add(RATE_UPDATE_US),
+            last_counters: St4Counters::default(),
+        };
+        (lp, rates)
+    }
+
+    /// When to wake if no edge arrives first, µs.
+    pub fn next_wake_us(&self) -> u64 {
+        self.feed
+            .st4()
+            .next_deadline_us()
+            .map_or(self.next_update_us, |d| d.min(self.next_update_us))
+    }
+
+    /// One wake-up at `now_us` (every edge stamped before it is in
+    /// `edges`), with the RA axis at `ra_steps` and the learner's newest
+    /// feed-forward, if one came since the last wake-up.
+    pub fn wake(
+        &mut self,
+        now_us: u64,
+        ra_steps: i64,
+        edges: &mut impl EdgeSource,
+        feed_forward: Option<FeedForward>,
+    ) -> Wake {
+        let mut wake = Wake::default();
+        let guiding = &mut self.guiding;
+        let mut n_events = 0usize;
+        let mut on_event = |ev: St4Event| {
+            guiding.on_event(ev);
+            if wake.events.push(ev).is_err() {
+                wake.more_events += 1;
+            }
+            n_events += 1;
+        };
+        while let Some(edge) = edges.next_edge() {
+            self.feed.edge(edge, &mut on_event);
+        }
+        let lost = self.feed.resync(edges.queue(), now_us, &mut on_event);
+        self.feed.poll(now_us, &mut on_event);
+        wake.lost_edges = lost;
+        if let Some(ff) = feed_forward {
+            self.guiding.set_feed_forward(ff);
+        }
+
+        let now_us = now_us.max(self.feed.last_us());
+        let changed = n_events > 0;
+        if changed || feed_forward.is_some() || now_us >= self.next_update_us {
+            wake.rates = Some(self.guiding.rates(now_us, ra_steps));
+        }
+        let counters = self.feed.st4().counters();
+        if changed || counters != self.last_counters {
+            self.last_counters = counters;
+            wake.st4_counters = Some(counters);
+        }
+        if now_us >= self.next_update_us {
+            self.next_update_us += RATE_UPDATE_US;
+            if self.next_update_us <= now_us {
+                self.next_update_us = now_us + RATE_UPDATE_US;
+            }
+        }
+        wake
+    }
+
+    /// The oldest completed frame, for a caller with room for it.
+    pub fn take_frame(&mut self) -> Option<FrameRecord> {
+        let frame = self.guiding.take_frame()?;
+        Some(FrameRecord {
+            frame,
+            st4: self.feed.st4().counters(),
+            guiding: self.guiding.counters(),
+        })
+    }
+
+    pub fn guiding(&self) -> &Guiding {
+        &self.guiding
+    }
+
+    pub fn st4_counters(&self) -> St4Counters {
+        self.feed.st4().counters()
+    }
+}
