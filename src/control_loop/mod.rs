@@ -155,3 +155,6 @@ impl ControlLoop {
         self.feed.st4().counters()
     }
 }
+
+#[cfg(test)]
+mod tests;
