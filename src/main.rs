@@ -55,7 +55,9 @@ use mkgp_mount::control_loop::st4_feed::{EdgeQueue, EdgeSource, RawEdge};
 use mkgp_mount::control_loop::stepping::AxisStepper;
 use mkgp_mount::control_loop::{ControlLoop, FrameRecord, Wake};
 use mkgp_mount::mount::config::{Mount, MountConfig};
-use mkgp_mount::mount::guiding::{FeedForward, FrameKind, Learner, Rates, FRAME_QUEUE};
+use mkgp_mount::mount::frame::{FeedForward, FrameKind, Rates};
+use mkgp_mount::mount::guiding::FRAME_QUEUE;
+use mkgp_mount::mount::learner::Learner;
 use mkgp_mount::mount::st4::{Axis, Direction, Line, St4Counters, St4Event};
 use mkgp_mount::mount::step_pulse::PinChange;
 

@@ -46,9 +46,9 @@ use mkgp_mount::control_loop::st4_feed::{EdgeQueue, EdgeSource, RawEdge};
 use mkgp_mount::control_loop::stepping::AxisStepper;
 use mkgp_mount::control_loop::{ControlLoop, FrameRecord};
 use mkgp_mount::mount::config::{Mount, MountConfig, SIDEREAL_ARCSEC_PER_S};
-use mkgp_mount::mount::guiding::{
-    FeedForward, Frame, Guiding, GuidingCounters, Learner, LearnerCounters, Rates, FRAME_QUEUE,
-};
+use mkgp_mount::mount::frame::{FeedForward, Frame, Rates};
+use mkgp_mount::mount::guiding::{Guiding, GuidingCounters, FRAME_QUEUE};
+use mkgp_mount::mount::learner::{Learner, LearnerCounters};
 use mkgp_mount::mount::st4::{Line, St4Counters};
 use std::collections::VecDeque;
 

@@ -7,7 +7,7 @@ use host_tests::cases::{self, Case};
 use host_tests::data::cases_file;
 use host_tests::st4_sim::{self, Firmware, Rig};
 use mkgp_mount::mount::config::{ConfigError, MountConfig};
-use mkgp_mount::mount::guiding::FrameKind;
+use mkgp_mount::mount::frame::FrameKind;
 use mkgp_mount::mount::st4::Line;
 
 const S: u64 = 1_000_000;

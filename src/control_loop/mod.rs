@@ -21,7 +21,8 @@ pub mod stepping;
 use heapless::Vec;
 
 use crate::mount::config::Mount;
-use crate::mount::guiding::{FeedForward, Frame, Guiding, GuidingCounters, Rates};
+use crate::mount::frame::{FeedForward, Frame, Rates};
+use crate::mount::guiding::{Guiding, GuidingCounters};
 use crate::mount::st4::{St4Counters, St4Event};
 use st4_feed::{EdgeSource, St4Feed};
 

@@ -3,7 +3,9 @@
 //! model's feed-forward into step rates and guide frames.
 
 pub mod config;
+pub mod frame;
 pub mod guiding;
+pub mod learner;
 pub mod st4;
 pub mod step_pulse;
 pub mod stepgen;

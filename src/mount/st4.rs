@@ -43,16 +43,18 @@
 //! (a pulse of exactly the cap ends normally) unless a poll at that time
 //! came before it.
 //!
-//! **Events** wait in a fixed ring of [`ST4_QUEUE_LEN`] (16) events, 256
-//! bytes. When it is full, the oldest event is dropped and counted in
+//! **Events** wait in a fixed queue (`heapless::Deque`) of
+//! [`ST4_QUEUE_LEN`] events. When it is full, the oldest event is dropped and counted in
 //! `dropped`; nothing panics. Poll after every edge and nothing is ever
 //! dropped: one `edge` or `poll` makes at most a few events. Per axis the
 //! events alternate `PulseStart`, `PulseEnd` (unless dropped) and their
 //! times never decrease; between the two axes the order of the events
 //! follows the time at which they were confirmed.
 //!
-//! RAM: `size_of::<St4>()` is 424 bytes (the queue 272, 4 lines x 16,
-//! 2 axes x 16, counters 24, times 32).
+//! RAM: the queue (16 bytes an event, plus its indices), 4 lines, 2 axes,
+//! the counters and two times; the unit test `size` pins the total.
+
+use heapless::Deque;
 
 /// A mount axis.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -182,51 +184,6 @@ enum AxisState {
     Blocked,
 }
 
-/// A fixed ring of events; full: the oldest is overwritten.
-struct Queue {
-    buf: [St4Event; ST4_QUEUE_LEN],
-    head: usize,
-    len: usize,
-}
-
-impl Queue {
-    const fn new() -> Self {
-        Queue {
-            buf: [St4Event::PulseEnd {
-                axis: Axis::Ra,
-                at_us: 0,
-            }; ST4_QUEUE_LEN],
-            head: 0,
-            len: 0,
-        }
-    }
-
-    /// Returns false when an old event had to be dropped.
-    fn push(&mut self, ev: St4Event) -> bool {
-        let mut kept = true;
-        if self.len >= ST4_QUEUE_LEN {
-            self.head = (self.head + 1) % ST4_QUEUE_LEN;
-            self.len = ST4_QUEUE_LEN - 1;
-            kept = false;
-        }
-        if let Some(slot) = self.buf.get_mut((self.head + self.len) % ST4_QUEUE_LEN) {
-            *slot = ev;
-            self.len += 1;
-        }
-        kept
-    }
-
-    fn pop(&mut self) -> Option<St4Event> {
-        if self.len == 0 {
-            return None;
-        }
-        let ev = self.buf.get(self.head).copied();
-        self.head = (self.head + 1) % ST4_QUEUE_LEN;
-        self.len -= 1;
-        ev
-    }
-}
-
 /// What `advance` does next.
 #[derive(Clone, Copy)]
 enum Action {
@@ -243,7 +200,7 @@ pub struct St4 {
     lines: [LineState; 4],
     /// RA, Dec.
     axes: [AxisState; 2],
-    queue: Queue,
+    queue: Deque<St4Event, ST4_QUEUE_LEN>,
     counters: St4Counters,
     /// The latest time seen (edges and polls).
     now_us: u64,
@@ -260,7 +217,7 @@ impl St4 {
             cap_us: pulse_cap_us as u64,
             lines: [LineState::RELEASED; 4],
             axes: [AxisState::Idle; 2],
-            queue: Queue::new(),
+            queue: Deque::new(),
             counters: St4Counters::default(),
             now_us: 0,
             last_edge_us: 0,
@@ -301,7 +258,7 @@ impl St4 {
     /// Call until `None`.
     pub fn poll(&mut self, now_us: u64) -> Option<St4Event> {
         self.advance(now_us, true);
-        self.queue.pop()
+        self.queue.pop_front()
     }
 
     pub fn counters(&self) -> St4Counters {
@@ -311,7 +268,7 @@ impl St4 {
     /// When poll() next needs to be called to confirm a pending edge or cut
     /// a pulse, if ever (the latest time seen when events are waiting).
     pub fn next_deadline_us(&self) -> Option<u64> {
-        if self.queue.len > 0 {
+        if !self.queue.is_empty() {
             return Some(self.now_us);
         }
         let mut next: Option<u64> = None;
@@ -379,10 +336,14 @@ impl St4 {
         }
     }
 
+    /// Queues an event; a full queue drops its oldest (counted).
     fn push(&mut self, ev: St4Event) {
-        if !self.queue.push(ev) {
+        if self.queue.is_full() {
+            self.queue.pop_front();
             self.counters.dropped = self.counters.dropped.wrapping_add(1);
         }
+        // Cannot fail: there is room now.
+        let _ = self.queue.push_back(ev);
     }
 
     /// When the axis' pulse is to be cut, if it runs and the cut is
@@ -871,10 +832,12 @@ mod tests {
         assert_eq!(s.counters(), St4Counters::default());
     }
 
+    /// On the 64-bit host; the queue's two indices are half as wide on the
+    /// target.
     #[test]
     fn size() {
         assert_eq!(core::mem::size_of::<St4Event>(), 16);
-        assert_eq!(core::mem::size_of::<St4>(), 424);
+        assert_eq!(core::mem::size_of::<St4>(), 432);
     }
 
     /// Random edges and polls: never panics; per axis the events alternate

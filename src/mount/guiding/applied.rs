@@ -1,0 +1,140 @@
+//! The applied correction C: everything the RA axis did beyond sidereal
+//! tracking, from the steps actually emitted, and the gear time.
+
+/// Signed difference a - b of two microsecond times, in seconds.
+pub(super) fn secs_between(a: u64, b: u64) -> f64 {
+    if a >= b {
+        (a - b) as f64 * 1e-6
+    } else {
+        -((b - a) as f64 * 1e-6)
+    }
+}
+
+/// The state of C at one instant.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Mark {
+    pub at_us: u64,
+    pub gear_s: f64,
+    /// C at the instant, arcsec.
+    pub c: f64,
+    /// Integral of C over wall time since the origin, arcsec s.
+    pub integral: f64,
+}
+
+/// C and its integral, updated at every `Guiding::rates` call.
+pub(super) struct Applied {
+    sidereal_sps: f64,
+    arcsec_per_step: f64,
+    /// Wall time and step count of the first update.
+    origin: Option<(u64, i64)>,
+    last_us: u64,
+    last_steps: i64,
+    last_c: f64,
+    integral: f64,
+    /// The RA rate set at the last update, steps/s.
+    last_ra_sps: f32,
+    /// Sum of the dithers' moves, arcsec, taken out of C.
+    dither_offset: f64,
+}
+
+impl Applied {
+    pub fn new(sidereal_sps: f64, arcsec_per_step: f64) -> Self {
+        Applied {
+            sidereal_sps,
+            arcsec_per_step,
+            origin: None,
+            last_us: 0,
+            last_steps: 0,
+            last_c: 0.0,
+            integral: 0.0,
+            last_ra_sps: 0.0,
+            dither_offset: 0.0,
+        }
+    }
+
+    pub fn sidereal_sps(&self) -> f64 {
+        self.sidereal_sps
+    }
+
+    pub fn arcsec_per_step(&self) -> f64 {
+        self.arcsec_per_step
+    }
+
+    pub fn started(&self) -> bool {
+        self.origin.is_some()
+    }
+
+    pub fn last_us(&self) -> u64 {
+        self.last_us
+    }
+
+    /// C at the last update, arcsec.
+    pub fn c(&self) -> f64 {
+        self.last_c
+    }
+
+    /// Gear time at the last update (seconds).
+    pub fn gear_time_s(&self) -> f64 {
+        self.last_steps as f64 / self.sidereal_sps
+    }
+
+    /// A dither moved the mount by `arcsec`: no gear error.
+    pub fn add_dither(&mut self, arcsec: f64) {
+        self.dither_offset += arcsec;
+    }
+
+    /// C, its integral and the gear time at `at_us`, extrapolated from the
+    /// last update with the rate set then (exact between updates).
+    pub fn mark_at(&self, at_us: u64) -> Mark {
+        if self.origin.is_none() {
+            return Mark {
+                at_us,
+                gear_s: 0.0,
+                c: 0.0,
+                integral: 0.0,
+            };
+        }
+        let dt = secs_between(at_us, self.last_us);
+        let extra_sps = self.last_ra_sps as f64 - self.sidereal_sps;
+        let c = self.last_c + extra_sps * self.arcsec_per_step * dt;
+        Mark {
+            at_us,
+            gear_s: (self.last_steps as f64 + self.last_ra_sps as f64 * dt) / self.sidereal_sps,
+            c,
+            integral: self.integral + 0.5 * (self.last_c + c) * dt,
+        }
+    }
+
+    /// The first update: the origin of C.
+    pub fn start(&mut self, now_us: u64, ra_steps: i64) {
+        self.origin = Some((now_us, ra_steps));
+        self.last_us = now_us;
+        self.last_steps = ra_steps;
+        self.last_c = -self.dither_offset;
+    }
+
+    /// An update whose time went backwards: only the step count is taken.
+    pub fn take_steps(&mut self, ra_steps: i64) {
+        self.last_steps = ra_steps;
+    }
+
+    /// An update at `now_us` (not before the last) with the RA step count.
+    pub fn advance(&mut self, now_us: u64, ra_steps: i64) {
+        let Some((t0, s0)) = self.origin else {
+            return self.start(now_us, ra_steps);
+        };
+        let dt = secs_between(now_us, self.last_us);
+        let not_tracking =
+            ra_steps.wrapping_sub(s0) as f64 - self.sidereal_sps * secs_between(now_us, t0);
+        let c = not_tracking * self.arcsec_per_step - self.dither_offset;
+        self.integral += 0.5 * (self.last_c + c) * dt;
+        self.last_c = c;
+        self.last_us = now_us;
+        self.last_steps = ra_steps;
+    }
+
+    /// The RA rate set from now on, steps/s.
+    pub fn set_ra_rate(&mut self, sps: f32) {
+        self.last_ra_sps = sps;
+    }
+}

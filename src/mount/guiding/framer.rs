@@ -1,0 +1,222 @@
+//! The guide frames: one per RA pulse, or filled at the guide cadence when
+//! the guider sends none, queued for the learner.
+
+use heapless::Deque;
+
+use super::applied::{secs_between, Applied, Mark};
+use super::{GuidingCounters, FRAME_QUEUE};
+use crate::mount::frame::{Frame, FrameKind};
+use crate::mount::st4::Direction;
+
+/// The frame an RA pulse opened: C at its start, and its direction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct OpenFrame {
+    mark: Mark,
+    direction: Direction,
+}
+
+fn sign(d: Direction) -> f32 {
+    match d {
+        Direction::Plus => 1.0,
+        Direction::Minus => -1.0,
+    }
+}
+
+pub(super) struct Framer {
+    aggressiveness: f32,
+    cadence_us: u64,
+    dither_threshold_us: u64,
+    silence_frames: u32,
+    guide_arcsec_per_s: f32,
+
+    open: Option<OpenFrame>,
+    last_frame: Option<Mark>,
+    /// Where the next filled frame goes (if the guider stays quiet) and its
+    /// mark once the time has passed.
+    fill_due_us: Option<u64>,
+    fill_mark: Option<Mark>,
+    /// Filled frames since the guider was last heard.
+    quiet_fills: u32,
+    last_activity_us: Option<u64>,
+    queue: Deque<Frame, FRAME_QUEUE>,
+}
+
+impl Framer {
+    pub fn new(
+        aggressiveness: f32,
+        cadence_us: u64,
+        dither_threshold_us: u64,
+        silence_frames: u32,
+        guide_arcsec_per_s: f32,
+    ) -> Self {
+        Framer {
+            aggressiveness,
+            cadence_us,
+            dither_threshold_us,
+            silence_frames,
+            guide_arcsec_per_s,
+            open: None,
+            last_frame: None,
+            fill_due_us: None,
+            fill_mark: None,
+            quiet_fills: 0,
+            last_activity_us: None,
+            queue: Deque::new(),
+        }
+    }
+
+    /// When the guider was last heard (a pulse start or end).
+    pub fn last_activity_us(&self) -> Option<u64> {
+        self.last_activity_us
+    }
+
+    /// Learning is frozen: the guider has been silent for too long.
+    pub fn silent(&self) -> bool {
+        self.quiet_fills > self.silence_frames
+    }
+
+    /// The guider was heard at `at_us`.
+    pub fn heard(&mut self, at_us: u64) {
+        if self.fill_due_us.is_none() {
+            self.fill_due_us = Some(at_us.saturating_add(self.cadence_us));
+        }
+        self.quiet_fills = 0;
+        self.last_activity_us = Some(at_us);
+    }
+
+    /// An RA pulse started: it opens a frame at `mark`.
+    pub fn open(&mut self, mark: Mark, direction: Direction) {
+        self.fill_mark = None;
+        self.open = Some(OpenFrame { mark, direction });
+    }
+
+    /// The RA pulse that started at `start_us` ended at `at_us`: complete
+    /// its frame (a dither's move is taken out of C).
+    pub fn close(
+        &mut self,
+        start_us: u64,
+        at_us: u64,
+        applied: &mut Applied,
+        counters: &mut GuidingCounters,
+    ) {
+        let Some(open) = self.open.take() else {
+            return;
+        };
+        let duration_us = at_us.saturating_sub(start_us);
+        let correction = sign(open.direction) * duration_us as f32 * 1e-6 * self.guide_arcsec_per_s;
+        let kind = if duration_us > self.dither_threshold_us {
+            applied.add_dither(correction as f64);
+            counters.dithers = counters.dithers.saturating_add(1);
+            FrameKind::Dither {
+                amount_arcsec: correction,
+            }
+        } else {
+            FrameKind::Measured
+        };
+        self.emit(open.mark, kind, correction, false, counters);
+        // The next filled frame: a cadence after this one, but not before
+        // the pulse ended (the guider was busy with it).
+        let due = open.mark.at_us.saturating_add(self.cadence_us).max(at_us);
+        self.fill_due_us = Some(due);
+    }
+
+    /// Before C moves on to `now_us`: the mark of a filled frame that fell
+    /// due meanwhile, taken while C still has the rate it had then.
+    pub fn keep_fill_mark(&mut self, applied: &Applied, now_us: u64, ra_pulse: bool) {
+        if let Some(due) = self.fill_due_us {
+            if self.fill_mark.is_none() && due <= now_us && !ra_pulse {
+                self.fill_mark = Some(applied.mark_at(due.max(applied.last_us())));
+            }
+        }
+    }
+
+    /// Emit the filled frame once its grace has passed without an RA pulse.
+    pub fn fill(
+        &mut self,
+        now_us: u64,
+        ra_pulse: bool,
+        applied: &Applied,
+        counters: &mut GuidingCounters,
+    ) {
+        if ra_pulse || self.open.is_some() {
+            return;
+        }
+        let Some(due) = self.fill_due_us else {
+            return;
+        };
+        let grace = self.cadence_us / 4;
+        if now_us < due.saturating_add(grace) {
+            return;
+        }
+        let mark = match self.fill_mark.take() {
+            Some(m) => m,
+            None => applied.mark_at(due.max(applied.last_us())),
+        };
+        self.quiet_fills = self.quiet_fills.saturating_add(1);
+        let kind = if self.quiet_fills > self.silence_frames {
+            if self.quiet_fills == self.silence_frames.saturating_add(1) {
+                counters.silences = counters.silences.saturating_add(1);
+            }
+            FrameKind::Unmeasured
+        } else {
+            FrameKind::Measured
+        };
+        self.emit(mark, kind, 0.0, true, counters);
+        self.fill_due_us = Some(mark.at_us.saturating_add(self.cadence_us.max(1)));
+    }
+
+    /// Queue the frame that ends at `mark`; a full queue drops its oldest.
+    fn emit(
+        &mut self,
+        mark: Mark,
+        kind: FrameKind,
+        pulse_arcsec: f32,
+        filled: bool,
+        counters: &mut GuidingCounters,
+    ) {
+        let (applied, interval) = match self.last_frame {
+            Some(prev) if mark.at_us > prev.at_us => (
+                (mark.integral - prev.integral) / secs_between(mark.at_us, prev.at_us),
+                (mark.gear_s - prev.gear_s).max(0.0),
+            ),
+            Some(prev) => (mark.c, (mark.gear_s - prev.gear_s).max(0.0)),
+            None => (mark.c, 0.0),
+        };
+        let applied = applied as f32;
+        let gear_error = match kind {
+            FrameKind::Measured if self.aggressiveness > 0.0 => {
+                applied + pulse_arcsec / self.aggressiveness
+            }
+            _ => applied,
+        };
+        let frame = Frame {
+            gear_time_s: mark.gear_s,
+            interval_s: interval as f32,
+            kind,
+            gear_error_arcsec: gear_error,
+            applied_arcsec: applied,
+            pulse_arcsec,
+            filled,
+        };
+        self.last_frame = Some(mark);
+        let c = counters;
+        c.frames = c.frames.saturating_add(1);
+        if filled {
+            c.filled_frames = c.filled_frames.saturating_add(1);
+        }
+        if kind == FrameKind::Unmeasured {
+            c.unmeasured_frames = c.unmeasured_frames.saturating_add(1);
+        }
+        if self.queue.is_full() {
+            self.queue.pop_front();
+            c.frames_dropped = c.frames_dropped.saturating_add(1);
+        }
+        // Cannot fail: there is room now.
+        let _ = self.queue.push_back(frame);
+    }
+
+    /// The next completed frame for the learner, oldest first.
+    pub fn take(&mut self) -> Option<Frame> {
+        self.queue.pop_front()
+    }
+}

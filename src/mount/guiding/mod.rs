@@ -1,0 +1,362 @@
+//! From ST4 pulses and time to step rates and guide frames: what the mount
+//! did, as observations of the gear error (docs/reference.md section 1).
+//!
+//! [`Guiding`] is the fast part of the controller: it runs in the
+//! high-priority task (through `control_loop::ControlLoop`) on every ST4
+//! event and every rate update, in constant time, never the model. It turns
+//! the active pulses and the installed feed-forward into step rates, and
+//! forms the guide [`Frame`]s for the slow part, the
+//! [`Learner`](crate::mount::learner::Learner), which runs the model once
+//! per frame at lower priority and returns the [`FeedForward`] that
+//! `Guiding` applies until the next one.
+//!
+//! Its parts: [`applied`] (the applied correction C and the gear time),
+//! [`framer`] (the frames and their queue), [`feed_forward`] (the
+//! feed-forward in effect).
+//!
+//! # Units and signs
+//!
+//! - Angles are arcseconds of RA on the sky; rates of the motors are steps
+//!   per second; the feed-forward is arcsec per second of gear time.
+//! - A positive RA correction makes the RA axis run faster than sidereal:
+//!   RA+ (west) pulses are positive, RA- negative. The gear error `g` is the
+//!   amount by which the axis lags the sky because of the gears, so the
+//!   correction that cancels it is `+g`. (In the simulator 1 px = 1 arcsec.)
+//! - The applied correction `C(t)` is everything that is not tracking: the
+//!   RA step count since the first [`Guiding::rates`] call minus the steps
+//!   of exact sidereal tracking over the same wall-clock time, in arcsec
+//!   (`(steps - sidereal steps) x arcsec per step`), pulses and feed-forward
+//!   together, measured from the steps actually emitted (so a clamped or
+//!   quantised rate is accounted for exactly), minus the moves of the dithers
+//!   (a dither moves the guider's lock position together with the mount, so
+//!   it is no gear error).
+//! - Gear time is `ra_steps / sidereal steps per second` (seconds): the
+//!   worm turns with the steps, so guide pulses and feed-forward advance the
+//!   worm phase exactly as much as they advance the gear, and the phase is
+//!   exact whatever the guiding did. A slew or a reset of the step counter
+//!   is a jump in gear time (the model handles a long jump by starting its
+//!   data again).
+//!
+//! # Frames: what the model learns
+//!
+//! A frame starts at each RA pulse start (the guider has just finished an
+//! exposure and measured; ST4 gives the edge's own time). When the guider
+//! sends no RA pulse for a guide cadence (`guide_cadence_s`, default 2 s),
+//! a frame is filled at `previous frame + cadence` (emitted after a grace
+//! of a quarter cadence, in case the pulse is just late). Its observation:
+//!
+//! `gear error = mean of C over the interval since the previous frame
+//!               + the frame's RA pulse correction / aggressiveness`
+//!
+//! The pulse correction is duration x guide rate (arcsec, signed); the
+//! guider asked for that much of the error it measured, so the error was
+//! about correction / aggressiveness (`guider_aggressiveness`, default 0.7;
+//! a filled frame has correction 0: the guider saw less than its minimum
+//! move). The mean of C over the interval matches what the guider measured:
+//! the exposure averages the star over about that interval, and the model
+//! stamps a frame at the midpoint of the interval since the previous one.
+//! The frame is emitted when its pulse ends (its duration is known only
+//! then) and stamped with the gear time of the pulse start.
+//!
+//! # Feed-forward
+//!
+//! The model's `Guider::observe` returns the predicted change of the gear
+//! error from the frame's timestamp (the midpoint of the last interval,
+//! `t - d/2`) to `t + time_step`. The learner asks for `time_step = T + d/2`
+//! with `T` the expected time to the next frame (the last interval, within
+//! half to twice the cadence), so that the window `[t - d/2, t + T + d/2]`
+//! is centred on the middle of the coming interval, and turns it into the
+//! rate `change / (T + d)` (arcsec per second of gear time), which the fast
+//! part adds to the RA rate from the moment it is installed until the next
+//! one (at most until [`FeedForward::until_gear_s`], then 0). The model
+//! weighs its prediction by its blend weight: 0 until it has earned trust.
+//! The rate is limited to the guide rate: a gear error changing faster than
+//! that is no gear error.
+//!
+//! # Dithers and silence
+//!
+//! - An RA pulse longer than `dither_threshold_us` is a dither: its move is
+//!   taken out of C, the frame is not learned, and the model is told with
+//!   `Guider::dithered` so that it settles for `DITHER_FRAMES` frames
+//!   without learning. The amount passed is 0: the model's dither offset
+//!   shifts its time axis by amount / rate, which for a PC guider stands for
+//!   the worm phase the dither moved; here gear time comes from the steps,
+//!   which already include the dither's steps, so passing the amount would
+//!   shift the phase twice.
+//! - Silence: after more than `silence_frames` filled frames in a row with
+//!   no pulse on either axis, learning freezes: the frames are passed to the
+//!   model as unmeasured (`None`), so the model keeps predicting from what
+//!   it learned and the feed-forward is extrapolated. At most one worm
+//!   period after the guider's last pulse the feed-forward is faded out
+//!   linearly over [`FADE_FRAMES`] cadences, and stays 0 until the guider
+//!   sends a pulse again.
+//!
+//! # Rates
+//!
+//! `RA = sidereal + guide rate x (+1 RA+, -1 RA-, 0) + feed-forward`, in
+//! [0, max] (the RA axis never reverses: below 0 it is clamped, counted in
+//! [`GuidingCounters::ra_clamped`]). `Dec = guide rate x (+1 Dec+ north,
+//! -1 Dec-, 0)`: signed, the sign is the direction, and `|Dec| <= max`.
+//! NaN never leaves: every input that could carry one is checked.
+
+mod applied;
+mod feed_forward;
+mod framer;
+#[cfg(test)]
+mod tests;
+
+use crate::mount::config::{Mount, SIDEREAL_ARCSEC_PER_S};
+use crate::mount::frame::{FeedForward, Frame, Rates};
+use crate::mount::st4::{Axis, Direction, St4Event};
+use applied::Applied;
+use feed_forward::FeedForwardState;
+use framer::Framer;
+
+/// Cadences over which the feed-forward is faded out after a silence.
+pub const FADE_FRAMES: u32 = 5;
+/// Frames the fast part keeps for the learner; when the learner falls this
+/// far behind the oldest is dropped (counted in `frames_dropped`).
+pub const FRAME_QUEUE: usize = 4;
+
+/// What the fast part saw and did, counted since construction.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct GuidingCounters {
+    /// Pulse starts per axis.
+    pub ra_pulses: u32,
+    pub dec_pulses: u32,
+    /// Frames made (all kinds), and of them: filled by the cadence, in
+    /// silence (unmeasured), dithers.
+    pub frames: u32,
+    pub filled_frames: u32,
+    pub unmeasured_frames: u32,
+    pub dithers: u32,
+    /// Times learning froze because the guider fell silent.
+    pub silences: u32,
+    /// Times the feed-forward was faded out completely after a silence.
+    pub feed_forward_faded: u32,
+    /// Feed-forwards refused (non-finite) or limited to the guide rate.
+    pub feed_forward_rejected: u32,
+    pub feed_forward_limited: u32,
+    /// Feed-forwards that ran out (no newer one by `until_gear_s`).
+    pub feed_forward_expired: u32,
+    /// Frames dropped because the learner was [`FRAME_QUEUE`] behind.
+    pub frames_dropped: u32,
+    /// `rates` calls whose RA or Dec rate had to be clamped into range.
+    pub ra_clamped: u32,
+    pub dec_clamped: u32,
+    /// `rates` calls with a time earlier than the previous one (ignored).
+    pub time_backwards: u32,
+    /// Pulse ends for an axis without a pulse (ignored).
+    pub stray_ends: u32,
+}
+
+/// The fast part: pulses and time to rates, and the guide frames.
+pub struct Guiding {
+    ra_guide_sps: f32,
+    dec_guide_sps: f32,
+    max_ra_sps: f32,
+    max_dec_sps: f32,
+    /// The active pulse per axis: direction and start.
+    ra_pulse: Option<(Direction, u64)>,
+    dec_pulse: Option<(Direction, u64)>,
+    applied: Applied,
+    frames: Framer,
+    feed_forward: FeedForwardState,
+    counters: GuidingCounters,
+}
+
+fn sign(d: Direction) -> f32 {
+    match d {
+        Direction::Plus => 1.0,
+        Direction::Minus => -1.0,
+    }
+}
+
+fn finite_or_zero(x: f32) -> f32 {
+    if x.is_finite() {
+        x
+    } else {
+        0.0
+    }
+}
+
+impl Guiding {
+    pub fn new(mount: &Mount) -> Self {
+        let c = mount.config();
+        let sidereal_sps = mount.sidereal_ra_steps_per_s_f64();
+        let guide_arcsec_per_s = mount.guide_rate_arcsec_per_s();
+        let cadence_us = (c.guide_cadence_s as f64 * 1e6) as u64;
+        let worm_period_us = (c.worm_period_s as f64 * 1e6) as u64;
+        Guiding {
+            ra_guide_sps: finite_or_zero(mount.guide_ra_steps_per_s()),
+            dec_guide_sps: finite_or_zero(mount.guide_dec_steps_per_s()),
+            max_ra_sps: finite_or_zero(mount.max_ra_steps_per_s()),
+            max_dec_sps: finite_or_zero(mount.max_dec_steps_per_s()),
+            ra_pulse: None,
+            dec_pulse: None,
+            applied: Applied::new(sidereal_sps, SIDEREAL_ARCSEC_PER_S / sidereal_sps),
+            frames: Framer::new(
+                c.guider_aggressiveness,
+                cadence_us,
+                c.dither_threshold_us as u64,
+                c.silence_frames,
+                guide_arcsec_per_s,
+            ),
+            feed_forward: FeedForwardState::new(guide_arcsec_per_s, worm_period_us, cadence_us),
+            counters: GuidingCounters::default(),
+        }
+    }
+
+    pub fn counters(&self) -> GuidingCounters {
+        self.counters
+    }
+
+    /// Gear time now (seconds), from the last `rates` call's step count.
+    pub fn gear_time_s(&self) -> f64 {
+        self.applied.gear_time_s()
+    }
+
+    /// The applied correction C at the last `rates` call, arcsec.
+    pub fn applied_arcsec(&self) -> f64 {
+        self.applied.c()
+    }
+
+    /// The feed-forward rate in effect at the last `rates` call, after the
+    /// fade, arcsec/s.
+    pub fn feed_forward_now(&self) -> f32 {
+        self.feed_forward
+            .rate(self.applied.last_us(), self.frames.last_activity_us())
+    }
+
+    /// Learning is frozen: the guider has been silent for too long.
+    pub fn silent(&self) -> bool {
+        self.frames.silent()
+    }
+
+    fn heard(&mut self, at_us: u64) {
+        self.frames.heard(at_us);
+        self.feed_forward.heard();
+    }
+
+    pub fn on_event(&mut self, ev: St4Event) {
+        match ev {
+            St4Event::PulseStart {
+                axis: Axis::Ra,
+                direction,
+                at_us,
+            } => {
+                self.counters.ra_pulses = self.counters.ra_pulses.saturating_add(1);
+                if self.ra_pulse.is_some() {
+                    // A start without an end: end the old pulse here.
+                    self.end_ra(at_us);
+                }
+                self.heard(at_us);
+                self.ra_pulse = Some((direction, at_us));
+                self.frames.open(self.applied.mark_at(at_us), direction);
+            }
+            St4Event::PulseStart {
+                axis: Axis::Dec,
+                direction,
+                at_us,
+            } => {
+                self.counters.dec_pulses = self.counters.dec_pulses.saturating_add(1);
+                self.heard(at_us);
+                self.dec_pulse = Some((direction, at_us));
+            }
+            St4Event::PulseEnd {
+                axis: Axis::Ra,
+                at_us,
+            } => {
+                if self.ra_pulse.is_none() {
+                    self.counters.stray_ends = self.counters.stray_ends.saturating_add(1);
+                    return;
+                }
+                self.heard(at_us);
+                self.end_ra(at_us);
+            }
+            St4Event::PulseEnd {
+                axis: Axis::Dec,
+                at_us,
+            } => {
+                if self.dec_pulse.take().is_none() {
+                    self.counters.stray_ends = self.counters.stray_ends.saturating_add(1);
+                    return;
+                }
+                self.heard(at_us);
+            }
+        }
+    }
+
+    /// The RA pulse ended at `at_us`: complete its frame.
+    fn end_ra(&mut self, at_us: u64) {
+        let Some((_, start_us)) = self.ra_pulse.take() else {
+            return;
+        };
+        self.frames
+            .close(start_us, at_us, &mut self.applied, &mut self.counters);
+    }
+
+    /// The next completed frame for the learner, oldest first.
+    pub fn take_frame(&mut self) -> Option<Frame> {
+        self.frames.take()
+    }
+
+    /// Install the learner's newest feed-forward. A non-finite one is
+    /// refused (no feed-forward until the next); the rate is limited to the
+    /// guide rate.
+    pub fn set_feed_forward(&mut self, ff: FeedForward) {
+        self.feed_forward.install(ff, &mut self.counters);
+    }
+
+    /// The RA step count (signed, as emitted by the stepper) and the time:
+    /// returns the rates to set now. Also makes the filled frames.
+    pub fn rates(&mut self, now_us: u64, ra_steps: i64) -> Rates {
+        let ra_pulse = self.ra_pulse.is_some();
+        if !self.applied.started() {
+            self.applied.start(now_us, ra_steps);
+        } else if now_us < self.applied.last_us() {
+            self.counters.time_backwards = self.counters.time_backwards.saturating_add(1);
+            self.applied.take_steps(ra_steps);
+        } else {
+            self.frames.keep_fill_mark(&self.applied, now_us, ra_pulse);
+            self.applied.advance(now_us, ra_steps);
+        }
+        self.frames
+            .fill(now_us, ra_pulse, &self.applied, &mut self.counters);
+
+        let heard = self.frames.last_activity_us();
+        self.feed_forward.update(
+            self.applied.gear_time_s(),
+            now_us,
+            heard,
+            &mut self.counters,
+        );
+        let ff_sps = self.feed_forward.rate(now_us, heard) as f64 / self.applied.arcsec_per_step();
+
+        let sidereal_sps = self.applied.sidereal_sps();
+        let guide = self.ra_pulse.map_or(0.0, |(d, _)| sign(d)) * self.ra_guide_sps;
+        let ra = (sidereal_sps + guide as f64 + ff_sps) as f32;
+        let ra_clamped = if ra.is_finite() {
+            ra.clamp(0.0, self.max_ra_sps)
+        } else {
+            (sidereal_sps as f32).clamp(0.0, self.max_ra_sps)
+        };
+        if ra_clamped != ra {
+            self.counters.ra_clamped = self.counters.ra_clamped.saturating_add(1);
+        }
+        let dec = self.dec_pulse.map_or(0.0, |(d, _)| sign(d)) * self.dec_guide_sps;
+        let dec_clamped = if dec.is_finite() {
+            dec.clamp(-self.max_dec_sps, self.max_dec_sps)
+        } else {
+            0.0
+        };
+        if dec_clamped != dec {
+            self.counters.dec_clamped = self.counters.dec_clamped.saturating_add(1);
+        }
+        self.applied.set_ra_rate(ra_clamped);
+        Rates {
+            ra_steps_per_s: ra_clamped,
+            dec_steps_per_s: dec_clamped,
+        }
+    }
+}

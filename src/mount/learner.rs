@@ -1,0 +1,170 @@
+//! The slow part of the controller: the model. It learns the gear error
+//! from the guide frames that [`Guiding`](crate::mount::guiding::Guiding)
+//! forms, and returns the feed-forward for the time to the next frame (the
+//! module doc of [`crate::mount::guiding`] has the window and the rate).
+//!
+//! It owns the model (`Guider<f32, N>`: the firmware keeps it in a static)
+//! and runs in a task of lower priority than ST4 and stepping, once per
+//! frame.
+
+use crate::model::guider::{Guider, GuiderConfig, DITHER_FRAMES};
+use crate::mount::config::Mount;
+use crate::mount::frame::{FeedForward, Frame, FrameKind};
+
+/// What the learner did, counted since construction.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LearnerCounters {
+    /// Frames given to the model (one `observe` call each).
+    pub frames: u32,
+    /// Of them learned as observations of the gear error.
+    pub learned: u32,
+    /// Passed as unmeasured: silence, dithers and the frames settling after
+    /// one.
+    pub not_learned: u32,
+    /// Dithers the model was told about.
+    pub dithers: u32,
+}
+
+/// The slow part: the model. Call [`learn`](Self::learn) once per frame
+/// from a task of lower priority than the ST4 and stepping task.
+pub struct Learner<const N: usize> {
+    guider: Guider<f32, N>,
+    /// The SNR given to the model with each observation (<= 0: unknown,
+    /// the model's default 10): sets the measurement variance.
+    pub snr: f32,
+    cadence_s: f32,
+    last_gear_s: Option<f64>,
+    settling: u8,
+    counters: LearnerCounters,
+}
+
+impl<const N: usize> Learner<N> {
+    /// The model with the library's defaults, the worm period of the mount
+    /// as its prior period.
+    pub fn new(mount: &Mount) -> Self {
+        let c = mount.config();
+        let config = GuiderConfig::<f32> {
+            prior_period_s: c.worm_period_s as f64,
+            control_gain: c.guider_aggressiveness,
+            ..GuiderConfig::default()
+        };
+        Self::with_config(mount, config)
+    }
+
+    /// The model with another configuration (the control and prediction
+    /// gains are not used: the learner only observes).
+    pub fn with_config(mount: &Mount, config: GuiderConfig<f32>) -> Self {
+        let c = mount.config();
+        Learner {
+            guider: Guider::new(config),
+            snr: 0.0,
+            cadence_s: c.guide_cadence_s,
+            last_gear_s: None,
+            settling: 0,
+            counters: LearnerCounters::default(),
+        }
+    }
+
+    pub fn guider(&self) -> &Guider<f32, N> {
+        &self.guider
+    }
+
+    pub fn counters(&self) -> LearnerCounters {
+        self.counters
+    }
+
+    /// Learn one frame and return the feed-forward for the time to the next.
+    pub fn learn(&mut self, frame: Frame) -> FeedForward {
+        let t = frame.gear_time_s;
+        let d = match self.last_gear_s {
+            Some(prev) if t >= prev => t - prev,
+            _ => 0.0,
+        };
+        if t.is_finite() {
+            self.last_gear_s = Some(t);
+        }
+        let cadence = self.cadence_s as f64;
+        // Expected time to the next frame: the last interval, within half
+        // to twice the cadence.
+        let next = if d > 0.0 {
+            d.clamp(0.5 * cadence, 2.0 * cadence)
+        } else {
+            cadence
+        };
+        if let FrameKind::Dither { .. } = frame.kind {
+            // Settle without learning. Amount 0: gear time comes from the steps,
+            // which already include the dither's (`crate::mount::guiding`).
+            self.guider.dithered(0.0, 1.0);
+            self.settling = DITHER_FRAMES;
+            self.counters.dithers = self.counters.dithers.saturating_add(1);
+        }
+        // The guider counts its settling frames itself (the dither frame is
+        // the first); this mirror only feeds the counters.
+        let settling = self.settling > 0;
+        if settling {
+            self.settling -= 1;
+        }
+        let observation = match frame.kind {
+            FrameKind::Measured if !settling => Some(frame.gear_error_arcsec as f64),
+            _ => None,
+        };
+        self.counters.frames = self.counters.frames.saturating_add(1);
+        if observation.is_some() {
+            self.counters.learned = self.counters.learned.saturating_add(1);
+        } else {
+            self.counters.not_learned = self.counters.not_learned.saturating_add(1);
+        }
+        let step = next + 0.5 * d;
+        let change = self.guider.observe(
+            t,
+            observation,
+            frame.applied_arcsec as f64,
+            self.snr,
+            step as f32,
+        );
+        let rate = change as f64 / (next + d);
+        let rate = if rate.is_finite() { rate as f32 } else { 0.0 };
+        FeedForward {
+            rate_arcsec_per_s: rate,
+            from_gear_s: t,
+            until_gear_s: t + 3.0 * next.max(cadence),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mount::config::MountConfig;
+
+    #[test]
+    fn learner_gives_a_finite_feed_forward() {
+        let m = MountConfig::default().validate().unwrap();
+        let mut l: std::boxed::Box<Learner<1>> = std::boxed::Box::new(Learner::new(&m));
+        for k in 0..50 {
+            let t = 2.0 * k as f64;
+            let ff = l.learn(Frame {
+                gear_time_s: t,
+                interval_s: if k == 0 { 0.0 } else { 2.0 },
+                kind: FrameKind::Measured,
+                gear_error_arcsec: (t * 0.01).sin() as f32,
+                applied_arcsec: 0.0,
+                pulse_arcsec: 0.0,
+                filled: false,
+            });
+            assert!(ff.rate_arcsec_per_s.is_finite());
+            assert!(ff.until_gear_s > t);
+        }
+        l.learn(Frame {
+            gear_time_s: 100.0,
+            interval_s: 2.0,
+            kind: FrameKind::Dither { amount_arcsec: 5.0 },
+            gear_error_arcsec: 0.0,
+            applied_arcsec: 0.0,
+            pulse_arcsec: 5.0,
+            filled: false,
+        });
+        let c = l.counters();
+        assert_eq!((c.frames, c.learned, c.dithers), (51, 50, 1));
+    }
+}
