@@ -4,7 +4,10 @@
 #   0. toolchain: rustup target thumbv7em-none-eabihf, llvm-tools, rustfmt;
 #      qemu-system-arm (installed with apt-get when run as root).
 #   1. cargo fmt --check in every crate.
-#   2. host tests:   cd host-tests && cargo test --release
+#   2. unit tests:   the library's own tests, on the host
+#                    (cargo test --release --lib --no-default-features
+#                    --target <host>)
+#      host tests:   cd host-tests && cargo test --release
 #   3. target tests: cd target-tests && cargo run --release   (QEMU, Cortex-M4F)
 #   4. firmware:     cargo build --release for each chip, with flash/RAM use;
 #                    fails if the STM32F411CE build exceeds 128 KiB of flash
@@ -66,7 +69,10 @@ if [ "$HAVE_HOST_TESTS" = 1 ]; then
     (cd host-tests && cargo fmt --check)
 fi
 
-# --- 2. host tests ------------------------------------------------------------
+# --- 2. the library's unit tests and the host tests ---------------------------
+step "library unit tests (cargo test --release --lib on $HOST)"
+cargo test --release --lib --no-default-features --target "$HOST"
+
 if [ "$HAVE_HOST_TESTS" = 1 ]; then
     step "host tests (host-tests: cargo test --release)"
     (cd host-tests && cargo test --release)
