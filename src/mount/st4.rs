@@ -70,6 +70,16 @@ pub enum Direction {
     Minus,
 }
 
+impl Direction {
+    /// +1 for Plus, -1 for Minus.
+    pub fn sign(self) -> f32 {
+        match self {
+            Direction::Plus => 1.0,
+            Direction::Minus => -1.0,
+        }
+    }
+}
+
 /// The four lines, active low. RA+ = move west = RA axis faster than
 /// sidereal; RA- = slower; Dec+ = north.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -15,13 +15,6 @@ struct OpenFrame {
     direction: Direction,
 }
 
-fn sign(d: Direction) -> f32 {
-    match d {
-        Direction::Plus => 1.0,
-        Direction::Minus => -1.0,
-    }
-}
-
 pub(super) struct Framer {
     aggressiveness: f32,
     cadence_us: u64,
@@ -103,7 +96,7 @@ impl Framer {
             return;
         };
         let duration_us = at_us.saturating_sub(start_us);
-        let correction = sign(open.direction) * duration_us as f32 * 1e-6 * self.guide_arcsec_per_s;
+        let correction = open.direction.sign() * duration_us as f32 * 1e-6 * self.guide_arcsec_per_s;
         let kind = if duration_us > self.dither_threshold_us {
             applied.add_dither(correction as f64);
             counters.dithers = counters.dithers.saturating_add(1);

@@ -165,13 +165,6 @@ pub struct Guiding {
     counters: GuidingCounters,
 }
 
-fn sign(d: Direction) -> f32 {
-    match d {
-        Direction::Plus => 1.0,
-        Direction::Minus => -1.0,
-    }
-}
-
 fn finite_or_zero(x: f32) -> f32 {
     if x.is_finite() {
         x
@@ -334,7 +327,7 @@ impl Guiding {
         let ff_sps = self.feed_forward.rate(now_us, heard) as f64 / self.applied.arcsec_per_step();
 
         let sidereal_sps = self.applied.sidereal_sps();
-        let guide = self.ra_pulse.map_or(0.0, |(d, _)| sign(d)) * self.ra_guide_sps;
+        let guide = self.ra_pulse.map_or(0.0, |(d, _)| d.sign()) * self.ra_guide_sps;
         let ra = (sidereal_sps + guide as f64 + ff_sps) as f32;
         let ra_clamped = if ra.is_finite() {
             ra.clamp(0.0, self.max_ra_sps)
@@ -344,7 +337,7 @@ impl Guiding {
         if ra_clamped != ra {
             self.counters.ra_clamped = self.counters.ra_clamped.saturating_add(1);
         }
-        let dec = self.dec_pulse.map_or(0.0, |(d, _)| sign(d)) * self.dec_guide_sps;
+        let dec = self.dec_pulse.map_or(0.0, |(d, _)| d.sign()) * self.dec_guide_sps;
         let dec_clamped = if dec.is_finite() {
             dec.clamp(-self.max_dec_sps, self.max_dec_sps)
         } else {
