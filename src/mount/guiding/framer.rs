@@ -96,7 +96,8 @@ impl Framer {
             return;
         };
         let duration_us = at_us.saturating_sub(start_us);
-        let correction = open.direction.sign() * duration_us as f32 * 1e-6 * self.guide_arcsec_per_s;
+        let correction =
+            open.direction.sign() * duration_us as f32 * 1e-6 * self.guide_arcsec_per_s;
         let kind = if duration_us > self.dither_threshold_us {
             applied.add_dither(correction as f64);
             counters.dithers = counters.dithers.saturating_add(1);
