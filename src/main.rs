@@ -99,7 +99,7 @@ async fn main(spawner: Spawner) {
         ticker.next().await;
         beats = beats.wrapping_add(1);
         led.toggle();
-        if beats % STATUS_EVERY != 0 {
+        if !beats.is_multiple_of(STATUS_EVERY) {
             continue;
         }
         match running {

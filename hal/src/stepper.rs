@@ -116,7 +116,7 @@ impl StepTicker {
                 timer_clock_hz,
             });
         }
-        if timer_clock_hz % tick_hz != 0 {
+        if !timer_clock_hz.is_multiple_of(tick_hz) {
             return Err(TickError::Inexact {
                 tick_hz,
                 timer_clock_hz,
