@@ -10,3 +10,4 @@
 pub mod control_loop;
 pub mod model;
 pub mod mount;
+pub mod safety;
