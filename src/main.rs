@@ -34,7 +34,6 @@
 mod firmware;
 
 use defmt_rtt as _;
-use panic_probe as _;
 
 use embassy_executor::Spawner;
 use embassy_stm32::gpio::{Level, Output, Speed};
@@ -44,7 +43,7 @@ use embassy_time::{Duration, Ticker};
 
 use firmware::guiding_task::{guiding_task, EXECUTOR_HIGH};
 use firmware::learning_task::{learning_task, make_learner};
-use firmware::{log, step_tick};
+use firmware::{fault, log, step_tick};
 use hal::stepper::{StepAxis, StepTicker};
 use mkgp_mount::mount::config::MountConfig;
 
@@ -61,12 +60,15 @@ const DEC_DIR_FORWARD_HIGH: bool = true;
 const EXECUTOR_HIGH_PRIORITY: Priority = Priority::P2;
 /// NVIC priority of embassy's time driver (TIM5); `P0` is the step tick's.
 const TIME_DRIVER_PRIORITY: Priority = Priority::P1;
+/// Timeout of the independent watchdog, µs: ten liveness checks.
+const WATCHDOG_TIMEOUT_US: u32 = 1_000_000;
 /// Periodic stages of the gear-error model: the worm and one more (MKGP).
 pub(crate) const STAGES: usize = 2;
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
     let p = hal::clocks::init();
+    let last_reset = fault::take_last_reset();
     interrupt::TIM5.set_priority(TIME_DRIVER_PRIORITY);
     let board = hal::take_board!(p);
     defmt::info!(
@@ -88,7 +90,7 @@ async fn main(spawner: Spawner) {
     let ra = StepAxis::new(board.ra, RA_DIR_FORWARD_HIGH);
     let dec = StepAxis::new(board.dec, DEC_DIR_FORWARD_HIGH);
 
-    let running = start(spawner, p.TIM2, ra, dec, board.st4);
+    let running = start(spawner, p.TIM2, p.IWDG, ra, dec, board.st4);
     if running.is_err() {
         defmt::error!("motors stay disabled; fix the configuration and reflash");
     }
@@ -106,16 +108,18 @@ async fn main(spawner: Spawner) {
             Ok(()) => log::status(),
             Err(()) => defmt::error!("configuration refused at start-up; motors disabled"),
         }
+        fault::log_last_reset(&last_reset);
     }
 }
 
 /// Validates the configuration, builds the model, starts the step tick,
 /// enables the drivers and starts the guiding task (high priority) and the
-/// learning task (on `spawner`, thread mode). On a refused configuration:
+/// learning task (on `spawner`, thread mode), and the watchdog. On a refused configuration:
 /// logs why and returns with the drivers disabled and nothing started.
 fn start(
     spawner: Spawner,
     tim: embassy_stm32::Peri<'static, hal::stepper::StepTimer>,
+    iwdg: embassy_stm32::Peri<'static, embassy_stm32::peripherals::IWDG>,
     ra: StepAxis,
     dec: StepAxis,
     st4_pins: hal::board::St4Pins,
@@ -162,7 +166,9 @@ fn start(
     let edges = hal::st4::start(st4_pins);
     interrupt::SDIO.set_priority(EXECUTOR_HIGH_PRIORITY);
     let high = EXECUTOR_HIGH.start(interrupt::SDIO);
-    match guiding_task(edges, mount) {
+    // From here on a hung guiding task resets the board.
+    let watchdog = hal::reset::Watchdog::start(iwdg, WATCHDOG_TIMEOUT_US);
+    match guiding_task(edges, mount, watchdog) {
         Ok(token) => high.spawn(token),
         Err(_) => {
             defmt::error!("guiding task could not be spawned");

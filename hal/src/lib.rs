@@ -9,7 +9,10 @@
 //!   first call of the firmware and returns the `Peripherals`.
 //! - [`st4`]: the ST4 guide port's four inputs on EXTI, each edge
 //!   timestamped in its interrupt and queued for one task.
-//! - [`stepper`]: STEP/DIR/ENABLE of each axis and the step tick timer.
+//! - [`stepper`]: STEP/DIR/ENABLE of each axis and the step tick timer, and
+//!   [`stepper::force_drivers_off`] for the fault path.
+//! - [`reset`]: the reset flags, a reset on demand and the independent
+//!   watchdog.
 //!
 //! This crate knows the hardware only; what edges mean and how many steps to
 //! make is the `mkgp-mount` library's business, glued together in the
@@ -37,6 +40,7 @@ compile_error!("mount-hal: select only one chip feature");
 
 pub mod board;
 pub mod clocks;
+pub mod reset;
 pub mod st4;
 pub mod stepper;
 

@@ -85,6 +85,25 @@ impl StepAxis {
     }
 }
 
+/// Disables both drivers from anywhere, at any time: the fault path's first
+/// act (panic, HardFault, a stalled part), when the [`StepAxis`] owners may
+/// be in any state.
+///
+/// # Safety
+/// Takes the ENABLE pins behind their owners' backs: call only on the way to
+/// a reset, with interrupts disabled, never returning to code that uses the
+/// [`StepAxis`]es.
+pub unsafe fn force_drivers_off() {
+    use crate::board::pins::{DecEnable, RaEnable};
+    // SAFETY: as the caller promises, nothing uses these pins again.
+    let (ra, dec) = unsafe { (RaEnable::steal(), DecEnable::steal()) };
+    // ENABLE high = driver off. Forgotten, not dropped: dropping an Output
+    // disconnects the pin, which would let the driver's own pull-down
+    // enable it again.
+    core::mem::forget(Output::new(ra, Level::High, Speed::Low));
+    core::mem::forget(Output::new(dec, Level::High, Speed::Low));
+}
+
 /// The step tick could not be set up.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]
 pub enum TickError {

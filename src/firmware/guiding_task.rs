@@ -13,6 +13,7 @@ use embassy_sync::channel::Channel;
 use embassy_sync::signal::Signal;
 use embassy_time::{Instant, Timer};
 
+use hal::reset::Watchdog;
 use hal::st4::{PinEdge, St4Edges};
 use mkgp_mount::control_loop::st4_feed::{EdgeQueue, EdgeSource, RawEdge};
 use mkgp_mount::control_loop::{ControlLoop, FrameRecord};
@@ -20,9 +21,13 @@ use mkgp_mount::mount::config::Mount;
 use mkgp_mount::mount::frame::FeedForward;
 use mkgp_mount::mount::guiding::FRAME_QUEUE;
 use mkgp_mount::mount::st4::{Line, St4Counters};
+use mkgp_mount::safety::fault_record::FaultRecord;
+use mkgp_mount::safety::liveness::{Liveness, Progress, Verdict};
 
+use crate::firmware::fault::enter_safe_state;
+use crate::firmware::learning_task::frames_learned;
 use crate::firmware::log;
-use crate::firmware::step_tick::{set_rates, step_counts};
+use crate::firmware::step_tick::{self, set_rates, step_counts};
 
 pub static EXECUTOR_HIGH: InterruptExecutor = InterruptExecutor::new();
 
@@ -72,9 +77,19 @@ impl EdgeSource for HalEdges<'_> {
     }
 }
 
-/// Moves the hal's edges and the time into the loop, and its rates out.
+/// What the liveness check reads.
+fn progress() -> Progress {
+    Progress {
+        step_ticks: step_tick::ticks(),
+        frames_learned: frames_learned(),
+        frames_waiting: !FRAMES.is_empty(),
+    }
+}
+
+/// Moves the hal's edges and the time into the loop, and its rates out;
+/// feeds the watchdog while the liveness check finds everything alive.
 #[embassy_executor::task]
-pub async fn guiding_task(mut edges: St4Edges, mount: Mount) {
+pub async fn guiding_task(mut edges: St4Edges, mount: Mount, mut watchdog: Watchdog) {
     let (ra_steps, _) = step_counts();
     let (mut lp, rates) = ControlLoop::start(&mount, Instant::now().as_micros(), ra_steps);
     let rates = set_rates(rates);
@@ -83,8 +98,13 @@ pub async fn guiding_task(mut edges: St4Edges, mount: Mount) {
         rates.ra_steps_per_s,
         rates.dec_steps_per_s
     );
+    let mut liveness = Liveness::new(
+        mount.config().step_tick_hz,
+        Instant::now().as_micros(),
+        progress(),
+    );
     loop {
-        let wake_at = Instant::from_micros(lp.next_wake_us());
+        let wake_at = Instant::from_micros(lp.next_wake_us().min(liveness.next_check_us()));
         let first = match select(edges.next(), Timer::at(wake_at)).await {
             Either::First(edge) => Some(edge),
             Either::Second(()) => None,
@@ -113,5 +133,10 @@ pub async fn guiding_task(mut edges: St4Edges, mount: Mount) {
             ST4_COUNTERS.lock(|s| s.set(Some(c)));
         }
         log::wake(&wake);
+        match liveness.check(now_us, progress()) {
+            Verdict::Wait => {}
+            Verdict::Feed => watchdog.feed(),
+            Verdict::Stalled(part) => enter_safe_state(&FaultRecord::stalled(part)),
+        }
     }
 }

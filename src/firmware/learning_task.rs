@@ -1,6 +1,8 @@
 //! The learning task, in thread mode below everything else: runs the model
 //! once per guide frame and signals the feed-forward to the guiding task.
 
+use core::sync::atomic::{AtomicU32, Ordering};
+
 use static_cell::StaticCell;
 
 use mkgp_mount::mount::config::Mount;
@@ -12,6 +14,13 @@ use crate::STAGES;
 
 /// The model's storage: a static, handed out once.
 static LEARNER: StaticCell<Learner<STAGES>> = StaticCell::new();
+
+/// Frames learned so far (wrapping), for the liveness check.
+static FRAMES_LEARNED: AtomicU32 = AtomicU32::new(0);
+
+pub fn frames_learned() -> u32 {
+    FRAMES_LEARNED.load(Ordering::Relaxed)
+}
 
 /// Builds the model in [`LEARNER`]. Not inlined, so that its stack frame is
 /// its own and can be read in the disassembly: `Learner::new` returns by
@@ -30,6 +39,7 @@ pub async fn learning_task(learner: &'static mut Learner<STAGES>) {
     loop {
         let msg = FRAMES.receive().await;
         let ff = learner.learn(msg.frame);
+        FRAMES_LEARNED.fetch_add(1, Ordering::Relaxed);
         FEED_FORWARD.signal(ff);
         log::frame(learner, &msg, &ff);
     }

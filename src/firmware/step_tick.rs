@@ -46,9 +46,13 @@ struct Stepping {
 static STEPPING: Mutex<CriticalSectionRawMutex, RefCell<Option<Stepping>>> =
     Mutex::new(RefCell::new(None));
 
+/// Step ticks so far (wrapping), for the liveness check.
+static TICKS: AtomicU32 = AtomicU32::new(0);
+
 /// The step tick (hal::stepper::StepTimer = TIM2): integer work only.
 #[interrupt]
 fn TIM2() {
+    TICKS.fetch_add(1, Ordering::Relaxed);
     critical_section::with(|cs| {
         let mut stepping = STEPPING.borrow(cs).borrow_mut();
         if let Some(s) = stepping.as_mut() {
@@ -82,6 +86,11 @@ pub fn set_rates(rates: Rates) -> Rates {
     RA_RATE_BITS.store(set.ra_steps_per_s.to_bits(), Ordering::Relaxed);
     DEC_RATE_BITS.store(set.dec_steps_per_s.to_bits(), Ordering::Relaxed);
     set
+}
+
+/// Step ticks so far (wrapping).
+pub fn ticks() -> u32 {
+    TICKS.load(Ordering::Relaxed)
 }
 
 /// Steps emitted so far on (RA, Dec).
