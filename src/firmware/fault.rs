@@ -66,13 +66,7 @@ pub fn enter_safe_state(record: &FaultRecord) -> ! {
 
 #[panic_handler]
 fn panic(info: &PanicInfo) -> ! {
-    // The location only: formatting the message would pull core's
-    // formatting machinery (and its own panics) into the binary.
-    let record = info.location().map_or_else(
-        || FaultRecord::panic("", 0),
-        |l| FaultRecord::panic(l.file(), l.line()),
-    );
-    enter_safe_state(&record)
+    enter_safe_state(&FaultRecord::from_panic(info))
 }
 
 #[exception]

@@ -93,6 +93,13 @@ impl FaultRecord {
         record
     }
 
+    /// The panic of a panic handler: its location only (formatting the
+    /// message would pull core's formatting machinery into the binary).
+    pub fn from_panic(info: &core::panic::PanicInfo) -> Self {
+        info.location()
+            .map_or_else(|| Self::panic("", 0), |l| Self::panic(l.file(), l.line()))
+    }
+
     pub fn hard_fault(pc: u32, lr: u32) -> Self {
         Self::without_file(Fault::HardFault { pc, lr })
     }
