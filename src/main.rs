@@ -128,7 +128,7 @@ fn start(
     let mount = match config.validate() {
         Ok(mount) => mount,
         Err(e) => {
-            defmt::error!("mount configuration refused: {}", defmt::Display2Format(&e));
+            log::config_refused(&e);
             return Err(());
         }
     };

@@ -3,6 +3,7 @@
 //! short: at most six values each.
 
 use mkgp_mount::control_loop::{FrameRecord, Wake};
+use mkgp_mount::mount::config::{ConfigError, Value};
 use mkgp_mount::mount::frame::{FeedForward, FrameKind};
 use mkgp_mount::mount::learner::Learner;
 use mkgp_mount::mount::st4::{Axis, Direction, St4Counters, St4Event};
@@ -144,6 +145,19 @@ pub fn frame(learner: &Learner<STAGES>, msg: &FrameRecord, ff: &FeedForward) {
         g.feed_forward_faded
     );
     counters(msg.st4);
+}
+
+/// A refused configuration: the field, its value and the rule.
+pub fn config_refused(e: &ConfigError) {
+    let field = e.field.name();
+    match e.value {
+        Value::Count(v) => {
+            defmt::error!("mount configuration refused: {} = {}: {}", field, v, e.rule)
+        }
+        Value::Real(v) => {
+            defmt::error!("mount configuration refused: {} = {}: {}", field, v, e.rule)
+        }
+    }
 }
 
 /// The status line: step counts and rates, and the ST4 counters.

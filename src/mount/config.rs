@@ -3,9 +3,11 @@
 //! [`MountConfig`] holds the numbers that describe a mount (its drive
 //! trains, the step-generator tick, the ST4 timing and what the firmware
 //! assumes about the guider). [`MountConfig::validate`] checks every value
-//! and returns a [`Mount`] with the derived constants, or the first value it
-//! refuses as a [`ConfigError`] (whose `Display` text the firmware prints at
-//! start-up).
+//! against what is physical (the limits are this module's constants), and
+//! the values derived from them, and returns a [`Mount`] with the derived
+//! constants, or the first value it refuses as a [`ConfigError`]: the
+//! [`Field`] by name, its value and the rule it breaks, which the firmware
+//! logs at start-up.
 //!
 //! The derived constants are computed once, in `f64`: a `u32` step count
 //! above 2^24 is not exact in `f32`, and products such as arcsec per step
@@ -99,108 +101,129 @@ impl Default for MountConfig {
     }
 }
 
-/// A refused configuration value: one variant per check, naming the field.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum ConfigError {
-    /// `ra_steps_per_worm_turn` is 0.
-    ZeroRaSteps,
-    /// `worm_period_s` is not finite or not > 0.
-    WormPeriod(f32),
-    /// `dec_steps_per_degree` is not finite or not > 0.
-    DecSteps(f32),
-    /// `guide_rate_sidereal` is not in (0, 1].
-    GuideRate(f32),
-    /// `max_rate_sidereal` is not finite or below 1 + `guide_rate_sidereal`.
-    MaxRate(f32),
-    /// `step_tick_hz` is 0.
-    StepTick,
-    /// The RA axis at `max_rate_sidereal` needs more than one step per two
-    /// ticks of `step_tick_hz` (or its rate is not finite).
-    RateOverflow { max_steps_per_s: f32, tick_hz: u32 },
-    /// The Dec axis at `max_rate_sidereal` needs more than one step per two
-    /// ticks of `step_tick_hz` (or its rate is not finite).
-    DecRateOverflow { max_steps_per_s: f32, tick_hz: u32 },
-    /// `pulse_cap_us` is 0.
-    PulseCap,
-    /// `glitch_us` is 0 or not below `pulse_cap_us`.
-    Glitch(u32),
-    /// `dither_threshold_us` is not above `glitch_us` or not below
-    /// `pulse_cap_us`.
-    DitherThreshold(u32),
-    /// `guide_cadence_s` is not finite or not > 0.
-    GuideCadence(f32),
-    /// `guider_aggressiveness` is not in (0, 1].
-    Aggressiveness(f32),
-    /// `silence_frames` is 0.
+/// A field of [`MountConfig`], by name.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Field {
+    RaStepsPerWormTurn,
+    WormPeriodS,
+    DecStepsPerDegree,
+    GuideRateSidereal,
+    MaxRateSidereal,
+    StepTickHz,
+    GlitchUs,
+    PulseCapUs,
+    GuideCadenceS,
+    GuiderAggressiveness,
+    DitherThresholdUs,
     SilenceFrames,
 }
 
-/// The message of a rate the step tick cannot produce, for either axis.
-fn overflow(
-    f: &mut fmt::Formatter<'_>,
-    axis: &str,
-    max_steps_per_s: f32,
-    tick_hz: u32,
-) -> fmt::Result {
-    write!(
-        f,
-        "mount config: {axis} at max_rate_sidereal needs {max_steps_per_s} steps/s, \
-         more than step_tick_hz / 2 = {} (tick {tick_hz} Hz); lower max_rate_sidereal \
-         or raise step_tick_hz",
-        tick_hz / 2
-    )
+impl Field {
+    pub const ALL: [Field; 12] = [
+        Field::RaStepsPerWormTurn,
+        Field::WormPeriodS,
+        Field::DecStepsPerDegree,
+        Field::GuideRateSidereal,
+        Field::MaxRateSidereal,
+        Field::StepTickHz,
+        Field::GlitchUs,
+        Field::PulseCapUs,
+        Field::GuideCadenceS,
+        Field::GuiderAggressiveness,
+        Field::DitherThresholdUs,
+        Field::SilenceFrames,
+    ];
+
+    /// The field's name in [`MountConfig`].
+    pub fn name(self) -> &'static str {
+        match self {
+            Field::RaStepsPerWormTurn => "ra_steps_per_worm_turn",
+            Field::WormPeriodS => "worm_period_s",
+            Field::DecStepsPerDegree => "dec_steps_per_degree",
+            Field::GuideRateSidereal => "guide_rate_sidereal",
+            Field::MaxRateSidereal => "max_rate_sidereal",
+            Field::StepTickHz => "step_tick_hz",
+            Field::GlitchUs => "glitch_us",
+            Field::PulseCapUs => "pulse_cap_us",
+            Field::GuideCadenceS => "guide_cadence_s",
+            Field::GuiderAggressiveness => "guider_aggressiveness",
+            Field::DitherThresholdUs => "dither_threshold_us",
+            Field::SilenceFrames => "silence_frames",
+        }
+    }
+}
+
+/// A field's value: a count or a real number.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Value {
+    Count(u32),
+    Real(f32),
+}
+
+impl fmt::Display for Value {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Value::Count(v) => write!(f, "{v}"),
+            Value::Real(v) => write!(f, "{v}"),
+        }
+    }
+}
+
+/// A refused configuration: the field, its value and the rule it breaks.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ConfigError {
+    pub field: Field,
+    pub value: Value,
+    /// What the value must be, in words (the limits are the constants of
+    /// this module).
+    pub rule: &'static str,
 }
 
 impl fmt::Display for ConfigError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        use ConfigError::*;
-        match *self {
-            ZeroRaSteps => write!(f, "mount config: ra_steps_per_worm_turn is 0, must be > 0"),
-            WormPeriod(v) => write!(
-                f,
-                "mount config: worm_period_s = {v} s, must be finite and > 0"
-            ),
-            DecSteps(v) => write!(
-                f,
-                "mount config: dec_steps_per_degree = {v}, must be finite and > 0"
-            ),
-            GuideRate(v) => write!(
-                f,
-                "mount config: guide_rate_sidereal = {v}, must be in (0, 1]"
-            ),
-            MaxRate(v) => write!(
-                f,
-                "mount config: max_rate_sidereal = {v}, must be finite and at least 1 + guide_rate_sidereal"
-            ),
-            StepTick => write!(f, "mount config: step_tick_hz is 0, must be > 0"),
-            RateOverflow {
-                max_steps_per_s,
-                tick_hz,
-            } => overflow(f, "RA", max_steps_per_s, tick_hz),
-            DecRateOverflow {
-                max_steps_per_s,
-                tick_hz,
-            } => overflow(f, "Dec", max_steps_per_s, tick_hz),
-            PulseCap => write!(f, "mount config: pulse_cap_us is 0, must be > 0"),
-            Glitch(v) => write!(
-                f,
-                "mount config: glitch_us = {v}, must be > 0 and below pulse_cap_us"
-            ),
-            DitherThreshold(v) => write!(
-                f,
-                "mount config: dither_threshold_us = {v}, must be above glitch_us and below pulse_cap_us"
-            ),
-            GuideCadence(v) => write!(
-                f,
-                "mount config: guide_cadence_s = {v} s, must be finite and > 0"
-            ),
-            Aggressiveness(v) => write!(
-                f,
-                "mount config: guider_aggressiveness = {v}, must be in (0, 1]"
-            ),
-            SilenceFrames => write!(f, "mount config: silence_frames is 0, must be > 0"),
-        }
+        write!(
+            f,
+            "mount config: {} = {}: {}",
+            self.field.name(),
+            self.value,
+            self.rule
+        )
     }
+}
+
+// What is physical. A value outside these limits is a typo or a unit
+// mistake, and the firmware refuses it rather than drive a motor with it.
+
+/// The coarsest step on either axis, arcsec: coarser cannot follow the
+/// guide corrections of about an arcsecond that the model exists for, and a
+/// sidereal rate below one step per second does not track smoothly.
+pub const MAX_ARCSEC_PER_STEP: f64 = 15.0;
+/// Shortest worm period, s: a worm wheel of at most 1 436 teeth. The longest
+/// is one sidereal day (one tooth).
+pub const MIN_WORM_PERIOD_S: f32 = 60.0;
+/// Guide rates, in multiples of sidereal: PHD2 and INDI offer 0.1 to 1.
+pub const GUIDE_RATE_RANGE: (f32, f32) = (0.1, 1.0);
+/// Step tick, Hz: below 1 kHz a sidereal step train jitters by a
+/// millisecond; above 200 kHz the interrupt alone would eat the CPU.
+pub const STEP_TICK_RANGE_HZ: (u32, u32) = (1_000, 200_000);
+/// Longest debounce, µs: guide pulses can be as short as 10 ms.
+pub const MAX_GLITCH_US: u32 = 10_000;
+/// Longest pulse cap, µs: the longest LX200 pulse (60 s).
+pub const MAX_PULSE_CAP_US: u32 = 60_000_000;
+/// Guide cycle, s.
+pub const GUIDE_CADENCE_RANGE_S: (f32, f32) = (0.1, 60.0);
+/// The guider's aggressiveness: the firmware divides a pulse by it to
+/// rebuild the error the guider saw, so a setting far below the guider's
+/// real one multiplies every pulse into a false gear error (at 0.1 against
+/// a real 0.7 the mount guides 21 times worse than the guider alone). PHD2
+/// users run 0.4 to 1.0; its default is 0.7.
+pub const AGGRESSIVENESS_RANGE: (f32, f32) = (0.3, 1.0);
+/// Guide cycles of silence before learning freezes.
+pub const SILENCE_FRAMES_RANGE: (u32, u32) = (1, 1_000);
+
+/// `lo <= v <= hi`; false for NaN.
+fn within(v: f32, (lo, hi): (f32, f32)) -> bool {
+    v >= lo && v <= hi
 }
 
 /// A validated configuration and the constants derived from it.
@@ -218,90 +241,154 @@ pub struct Mount {
     max_dec_steps_per_s: f32,
 }
 
-fn positive_finite(v: f32) -> bool {
-    v.is_finite() && v > 0.0
-}
-
-fn in_unit_interval(v: f32) -> bool {
-    // NaN fails both comparisons.
-    v > 0.0 && v <= 1.0
-}
-
 impl MountConfig {
-    /// Checks every value (in field order; the first refused one is
-    /// returned) and derives the constants.
-    pub fn validate(&self) -> Result<Mount, ConfigError> {
+    /// The value of `field`.
+    pub fn get(&self, field: Field) -> Value {
         let c = self;
-        if c.ra_steps_per_worm_turn == 0 {
-            return Err(ConfigError::ZeroRaSteps);
+        match field {
+            Field::RaStepsPerWormTurn => Value::Count(c.ra_steps_per_worm_turn),
+            Field::WormPeriodS => Value::Real(c.worm_period_s),
+            Field::DecStepsPerDegree => Value::Real(c.dec_steps_per_degree),
+            Field::GuideRateSidereal => Value::Real(c.guide_rate_sidereal),
+            Field::MaxRateSidereal => Value::Real(c.max_rate_sidereal),
+            Field::StepTickHz => Value::Count(c.step_tick_hz),
+            Field::GlitchUs => Value::Count(c.glitch_us),
+            Field::PulseCapUs => Value::Count(c.pulse_cap_us),
+            Field::GuideCadenceS => Value::Real(c.guide_cadence_s),
+            Field::GuiderAggressiveness => Value::Real(c.guider_aggressiveness),
+            Field::DitherThresholdUs => Value::Count(c.dither_threshold_us),
+            Field::SilenceFrames => Value::Count(c.silence_frames),
         }
-        if !positive_finite(c.worm_period_s) {
-            return Err(ConfigError::WormPeriod(c.worm_period_s));
-        }
-        if !positive_finite(c.dec_steps_per_degree) {
-            return Err(ConfigError::DecSteps(c.dec_steps_per_degree));
-        }
-        if !in_unit_interval(c.guide_rate_sidereal) {
-            return Err(ConfigError::GuideRate(c.guide_rate_sidereal));
-        }
-        // NaN fails the comparison.
-        if !(c.max_rate_sidereal.is_finite() && c.max_rate_sidereal >= 1.0 + c.guide_rate_sidereal)
-        {
-            return Err(ConfigError::MaxRate(c.max_rate_sidereal));
-        }
-        if c.step_tick_hz == 0 {
-            return Err(ConfigError::StepTick);
-        }
+    }
 
-        // Derived rates, in f64 (see the module documentation).
+    /// `Ok` if `ok`, else the error for `field` breaking `rule`.
+    fn require(&self, ok: bool, field: Field, rule: &'static str) -> Result<(), ConfigError> {
+        if ok {
+            Ok(())
+        } else {
+            Err(ConfigError {
+                field,
+                value: self.get(field),
+                rule,
+            })
+        }
+    }
+
+    /// Checks every value and what follows from them (in field order; the
+    /// first refused one is returned) and derives the constants.
+    pub fn validate(&self) -> Result<Mount, ConfigError> {
+        use Field::*;
+        let c = self;
+        c.require(
+            c.ra_steps_per_worm_turn > 0,
+            RaStepsPerWormTurn,
+            "must be > 0",
+        )?;
+        c.require(
+            within(c.worm_period_s, (MIN_WORM_PERIOD_S, SIDEREAL_DAY_S as f32)),
+            WormPeriodS,
+            "must be 60 s to one sidereal day (86164 s): a wheel of 1 to 1436 teeth",
+        )?;
+        c.require(
+            c.dec_steps_per_degree.is_finite() && c.dec_steps_per_degree > 0.0,
+            DecStepsPerDegree,
+            "must be finite and > 0",
+        )?;
+        c.require(
+            within(c.guide_rate_sidereal, GUIDE_RATE_RANGE),
+            GuideRateSidereal,
+            "must be 0.1 to 1 (x sidereal)",
+        )?;
+        c.require(
+            c.max_rate_sidereal.is_finite() && c.max_rate_sidereal >= 1.0 + c.guide_rate_sidereal,
+            MaxRateSidereal,
+            "must be finite and at least 1 + guide_rate_sidereal",
+        )?;
+        c.require(
+            (STEP_TICK_RANGE_HZ.0..=STEP_TICK_RANGE_HZ.1).contains(&c.step_tick_hz),
+            StepTickHz,
+            "must be 1000 to 200000 Hz",
+        )?;
+
+        // Derived rates, in f64 (see the module documentation). Every input
+        // is finite and positive here, and the checks below bound them.
         let sidereal_ra = c.ra_steps_per_worm_turn as f64 / c.worm_period_s as f64;
         // Dec microsteps per second at the sidereal rate (arcsec/s -> deg/s).
         let sidereal_dec = SIDEREAL_ARCSEC_PER_S / 3600.0 * c.dec_steps_per_degree as f64;
-        let max = c.max_rate_sidereal as f64;
-        let max_ra = sidereal_ra * max;
-        let max_dec = sidereal_dec * max;
+        let arcsec_per_ra_step = SIDEREAL_ARCSEC_PER_S / sidereal_ra;
+        let arcsec_per_dec_step = 3600.0 / c.dec_steps_per_degree as f64;
+        c.require(
+            arcsec_per_ra_step <= MAX_ARCSEC_PER_STEP,
+            RaStepsPerWormTurn,
+            "too few for the worm period: more than 15 arcsec per RA step",
+        )?;
+        c.require(
+            arcsec_per_dec_step <= MAX_ARCSEC_PER_STEP,
+            DecStepsPerDegree,
+            "must be at least 240: more than 15 arcsec per Dec step",
+        )?;
         // At most one step per two ticks; this also keeps the Q0.32
-        // increment (rate / tick_hz * 2^32) at or below 2^31.
+        // increment (rate / tick_hz * 2^32) at or below 2^31. An axis that
+        // cannot even guide at that is refused for its steps; one that
+        // cannot reach max_rate_sidereal, for that rate.
         let limit = c.step_tick_hz as f64 / 2.0;
-        if !(max_ra.is_finite() && max_ra <= limit) {
-            return Err(ConfigError::RateOverflow {
-                max_steps_per_s: max_ra as f32,
-                tick_hz: c.step_tick_hz,
-            });
-        }
-        if !(max_dec.is_finite() && max_dec <= limit) {
-            return Err(ConfigError::DecRateOverflow {
-                max_steps_per_s: max_dec as f32,
-                tick_hz: c.step_tick_hz,
-            });
-        }
+        let guiding = 1.0 + c.guide_rate_sidereal as f64;
+        c.require(
+            sidereal_ra * guiding <= limit,
+            RaStepsPerWormTurn,
+            "too many for step_tick_hz: RA guiding needs more than step_tick_hz / 2 steps/s",
+        )?;
+        c.require(
+            sidereal_dec * guiding <= limit,
+            DecStepsPerDegree,
+            "too many for step_tick_hz: Dec guiding needs more than step_tick_hz / 2 steps/s",
+        )?;
+        let max = c.max_rate_sidereal as f64;
+        let (max_ra, max_dec) = (sidereal_ra * max, sidereal_dec * max);
+        c.require(
+            max_ra.max(max_dec) <= limit,
+            MaxRateSidereal,
+            "too fast for step_tick_hz: an axis would need more than step_tick_hz / 2 steps/s",
+        )?;
 
-        if c.pulse_cap_us == 0 {
-            return Err(ConfigError::PulseCap);
-        }
-        if c.glitch_us == 0 || c.glitch_us >= c.pulse_cap_us {
-            return Err(ConfigError::Glitch(c.glitch_us));
-        }
-        if c.dither_threshold_us <= c.glitch_us || c.dither_threshold_us >= c.pulse_cap_us {
-            return Err(ConfigError::DitherThreshold(c.dither_threshold_us));
-        }
-        if !positive_finite(c.guide_cadence_s) {
-            return Err(ConfigError::GuideCadence(c.guide_cadence_s));
-        }
-        if !in_unit_interval(c.guider_aggressiveness) {
-            return Err(ConfigError::Aggressiveness(c.guider_aggressiveness));
-        }
-        if c.silence_frames == 0 {
-            return Err(ConfigError::SilenceFrames);
-        }
+        c.require(
+            c.glitch_us > 0 && c.glitch_us <= MAX_GLITCH_US,
+            GlitchUs,
+            "must be 1 to 10000 us",
+        )?;
+        c.require(
+            c.pulse_cap_us > c.glitch_us && c.pulse_cap_us <= MAX_PULSE_CAP_US,
+            PulseCapUs,
+            "must be above glitch_us and at most 60000000 us (60 s)",
+        )?;
+        c.require(
+            within(c.guide_cadence_s, GUIDE_CADENCE_RANGE_S),
+            GuideCadenceS,
+            "must be 0.1 to 60 s",
+        )?;
+        c.require(
+            within(c.guider_aggressiveness, AGGRESSIVENESS_RANGE),
+            GuiderAggressiveness,
+            "must be 0.3 to 1 (PHD2's default is 0.7)",
+        )?;
+        c.require(
+            c.dither_threshold_us > c.glitch_us && c.dither_threshold_us < c.pulse_cap_us,
+            DitherThresholdUs,
+            "must be above glitch_us and below pulse_cap_us",
+        )?;
+        c.require(
+            (SILENCE_FRAMES_RANGE.0..=SILENCE_FRAMES_RANGE.1).contains(&c.silence_frames),
+            SilenceFrames,
+            "must be 1 to 1000",
+        )?;
 
         let guide = c.guide_rate_sidereal as f64;
         Ok(Mount {
             config: *c,
             sidereal_ra_steps_per_s_f64: sidereal_ra,
             sidereal_ra_steps_per_s: sidereal_ra as f32,
-            arcsec_per_ra_step: (SIDEREAL_ARCSEC_PER_S / sidereal_ra) as f32,
-            arcsec_per_dec_step: (3600.0 / c.dec_steps_per_degree as f64) as f32,
+            arcsec_per_ra_step: arcsec_per_ra_step as f32,
+            arcsec_per_dec_step: arcsec_per_dec_step as f32,
             guide_rate_arcsec_per_s: (guide * SIDEREAL_ARCSEC_PER_S) as f32,
             guide_ra_steps_per_s: (guide * sidereal_ra) as f32,
             guide_dec_steps_per_s: (guide * sidereal_dec) as f32,
@@ -455,195 +542,239 @@ mod tests {
         }
     }
 
-    #[test]
-    fn each_bad_field_is_refused_with_its_variant() {
-        let d = MountConfig::default();
-        assert_eq!(
-            refused(MountConfig {
-                ra_steps_per_worm_turn: 0,
-                ..d
-            }),
-            ConfigError::ZeroRaSteps
-        );
-        for v in [0.0, -479.0, f32::NAN, f32::INFINITY] {
-            let e = refused(MountConfig {
-                worm_period_s: v,
-                ..d
-            });
-            assert!(matches!(e, ConfigError::WormPeriod(_)), "{v}: {e:?}");
-        }
-        for v in [0.0, -1.0, f32::NAN, f32::INFINITY] {
-            let e = refused(MountConfig {
-                dec_steps_per_degree: v,
-                ..d
-            });
-            assert!(matches!(e, ConfigError::DecSteps(_)), "{v}: {e:?}");
-        }
-        for v in [0.0, -0.5, 1.01, f32::NAN, f32::INFINITY] {
-            let e = refused(MountConfig {
-                guide_rate_sidereal: v,
-                ..d
-            });
-            assert!(matches!(e, ConfigError::GuideRate(_)), "{v}: {e:?}");
-        }
-        // Guide rate 1 is allowed.
-        assert!(MountConfig {
-            guide_rate_sidereal: 1.0,
-            ..d
-        }
-        .validate()
-        .is_ok());
-        for v in [0.0, 0.5, 1.0, 1.49, -8.0, f32::NAN, f32::INFINITY] {
-            let e = refused(MountConfig {
-                max_rate_sidereal: v,
-                ..d
-            });
-            assert!(matches!(e, ConfigError::MaxRate(_)), "{v}: {e:?}");
-        }
-        assert_eq!(
-            refused(MountConfig {
-                step_tick_hz: 0,
-                ..d
-            }),
-            ConfigError::StepTick
-        );
-        // 8x sidereal = 1283.5 steps/s needs a tick of at least 2567 Hz.
-        let e = refused(MountConfig {
-            step_tick_hz: 2_000,
-            ..d
-        });
-        match e {
-            ConfigError::RateOverflow {
-                max_steps_per_s,
-                tick_hz,
-            } => {
-                assert!((max_steps_per_s - 1283.5).abs() < 0.1);
-                assert_eq!(tick_hz, 2_000);
-            }
-            _ => panic!("{e:?}"),
-        }
-        assert!(MountConfig {
-            step_tick_hz: 2_568,
-            ..d
-        }
-        .validate()
-        .is_ok());
-        // A huge step count per worm turn overflows the tick too.
-        assert!(matches!(
-            refused(MountConfig {
-                ra_steps_per_worm_turn: u32::MAX,
-                ..d
-            }),
-            ConfigError::RateOverflow { .. }
-        ));
-        // A tiny worm period as well.
-        assert!(matches!(
-            refused(MountConfig {
-                worm_period_s: 1e-30,
-                ..d
-            }),
-            ConfigError::RateOverflow { .. }
-        ));
-        // Dec alone too fast.
-        assert!(matches!(
-            refused(MountConfig {
-                dec_steps_per_degree: 1e6,
-                ..d
-            }),
-            ConfigError::DecRateOverflow { .. }
-        ));
-        assert!(matches!(
-            refused(MountConfig {
-                dec_steps_per_degree: f32::MAX,
-                ..d
-            }),
-            ConfigError::DecRateOverflow { .. }
-        ));
-        assert_eq!(
-            refused(MountConfig {
-                pulse_cap_us: 0,
-                ..d
-            }),
-            ConfigError::PulseCap
-        );
-        assert_eq!(
-            refused(MountConfig { glitch_us: 0, ..d }),
-            ConfigError::Glitch(0)
-        );
-        assert_eq!(
-            refused(MountConfig {
-                glitch_us: 10_000_000,
-                ..d
-            }),
-            ConfigError::Glitch(10_000_000)
-        );
-        for v in [0, 1_000, 10_000_000, u32::MAX] {
-            assert_eq!(
-                refused(MountConfig {
-                    dither_threshold_us: v,
-                    ..d
-                }),
-                ConfigError::DitherThreshold(v)
-            );
-        }
-        for v in [0.0, -2.0, f32::NAN, f32::INFINITY] {
-            let e = refused(MountConfig {
-                guide_cadence_s: v,
-                ..d
-            });
-            assert!(matches!(e, ConfigError::GuideCadence(_)), "{v}: {e:?}");
-        }
-        for v in [0.0, -0.7, 1.5, f32::NAN, f32::INFINITY] {
-            let e = refused(MountConfig {
-                guider_aggressiveness: v,
-                ..d
-            });
-            assert!(matches!(e, ConfigError::Aggressiveness(_)), "{v}: {e:?}");
-        }
-        assert_eq!(
-            refused(MountConfig {
-                silence_frames: 0,
-                ..d
-            }),
-            ConfigError::SilenceFrames
-        );
+    /// The default with `field` set to `v`.
+    fn with(field: Field, v: f64) -> MountConfig {
+        let mut c = MountConfig::default();
+        set(&mut c, field, v);
+        c
     }
 
-    /// A fixed buffer that implements `fmt::Write`, for the Display test.
-    struct Buf {
-        b: [u8; 256],
-        n: usize,
-    }
-    impl fmt::Write for Buf {
-        fn write_str(&mut self, s: &str) -> fmt::Result {
-            let end = self.n + s.len();
-            let dst = self.b.get_mut(self.n..end).ok_or(fmt::Error)?;
-            dst.copy_from_slice(s.as_bytes());
-            self.n = end;
-            Ok(())
+    /// Sets `field` to `v` (a count saturates: `v as u32`).
+    fn set(c: &mut MountConfig, field: Field, v: f64) {
+        let count = v as u32;
+        let real = v as f32;
+        match field {
+            Field::RaStepsPerWormTurn => c.ra_steps_per_worm_turn = count,
+            Field::WormPeriodS => c.worm_period_s = real,
+            Field::DecStepsPerDegree => c.dec_steps_per_degree = real,
+            Field::GuideRateSidereal => c.guide_rate_sidereal = real,
+            Field::MaxRateSidereal => c.max_rate_sidereal = real,
+            Field::StepTickHz => c.step_tick_hz = count,
+            Field::GlitchUs => c.glitch_us = count,
+            Field::PulseCapUs => c.pulse_cap_us = count,
+            Field::GuideCadenceS => c.guide_cadence_s = real,
+            Field::GuiderAggressiveness => c.guider_aggressiveness = real,
+            Field::DitherThresholdUs => c.dither_threshold_us = count,
+            Field::SilenceFrames => c.silence_frames = count,
         }
     }
 
     #[test]
-    fn errors_print_the_field_and_the_value() {
-        use core::fmt::Write;
-        let cases: [(ConfigError, &str); 4] = [
-            (ConfigError::ZeroRaSteps, "ra_steps_per_worm_turn"),
-            (ConfigError::GuideRate(1.5), "guide_rate_sidereal = 1.5"),
+    fn each_bad_value_is_refused_naming_its_field() {
+        use Field::*;
+        let nan = f64::NAN;
+        let inf = f64::INFINITY;
+        let bad: [(Field, &[f64]); 12] = [
+            // 0; 15.04 arcsec per step; 50 kHz tick / 2 at 1.5x sidereal.
             (
-                ConfigError::RateOverflow {
-                    max_steps_per_s: 30_000.0,
-                    tick_hz: 50_000,
-                },
-                "30000 steps/s, more than step_tick_hz / 2 = 25000",
+                RaStepsPerWormTurn,
+                &[0.0, 31.0, 9_000_000.0, u32::MAX as f64],
             ),
-            (ConfigError::SilenceFrames, "silence_frames"),
+            (
+                WormPeriodS,
+                &[0.0, -479.0, 59.0, 86_200.0, 1e-30, 3.4e38, nan, inf],
+            ),
+            (
+                DecStepsPerDegree,
+                &[0.0, -1.0, 1e-45, 239.0, 5e6, 3.4e38, nan, inf],
+            ),
+            (GuideRateSidereal, &[0.0, 1e-45, 0.09, 1.01, -0.5, nan, inf]),
+            (MaxRateSidereal, &[0.0, 1.49, 200.0, -8.0, nan, inf]),
+            (StepTickHz, &[0.0, 999.0, 200_001.0]),
+            (GlitchUs, &[0.0, 10_001.0]),
+            (PulseCapUs, &[0.0, 1_000.0, 60_000_001.0]),
+            (GuideCadenceS, &[0.0, 0.09, 61.0, -2.0, nan, inf]),
+            (
+                GuiderAggressiveness,
+                &[0.0, 1e-45, 0.1, 0.29, 1.01, nan, inf],
+            ),
+            (
+                DitherThresholdUs,
+                &[0.0, 1_000.0, 10_000_000.0, u32::MAX as f64],
+            ),
+            (SilenceFrames, &[0.0, 1_001.0]),
         ];
-        for (e, want) in cases {
-            let mut b = Buf { b: [0; 256], n: 0 };
-            write!(b, "{e}").unwrap();
-            let s = core::str::from_utf8(&b.b[..b.n]).unwrap();
-            assert!(s.contains(want), "{s:?} lacks {want:?}");
+        for (field, values) in bad {
+            for &v in values {
+                let e = refused(with(field, v));
+                assert_eq!(e.field, field, "{} = {v}: {e}", field.name());
+            }
         }
+    }
+
+    #[test]
+    fn the_limits_themselves_are_accepted() {
+        use Field::*;
+        let good: [(Field, &[f64]); 9] = [
+            (WormPeriodS, &[60.0, 4_000.0]),
+            (DecStepsPerDegree, &[240.0]),
+            (GuideRateSidereal, &[0.1, 1.0]),
+            (StepTickHz, &[2_568.0, 200_000.0]),
+            (GlitchUs, &[1.0, 10_000.0]),
+            (PulseCapUs, &[3_000_001.0, 60_000_000.0]),
+            (GuideCadenceS, &[0.1, 60.0]),
+            (GuiderAggressiveness, &[0.3, 1.0]),
+            (SilenceFrames, &[1.0, 1_000.0]),
+        ];
+        for (field, values) in good {
+            for &v in values {
+                let c = with(field, v);
+                assert!(
+                    c.validate().is_ok(),
+                    "{} = {v}: {:?}",
+                    field.name(),
+                    c.validate()
+                );
+            }
+        }
+        // A one-tooth "worm" (a harmonic drive turning once a day) with
+        // enough steps.
+        let day = MountConfig {
+            worm_period_s: 86_164.0,
+            ra_steps_per_worm_turn: 1_000_000,
+            ..MountConfig::default()
+        };
+        assert!(day.validate().is_ok());
+    }
+
+    /// The configurations randomized testing found accepted with infinite or
+    /// zero derived values (issue F6), each refused now, naming the field.
+    #[test]
+    fn configs_with_absurd_derived_values_are_refused() {
+        let d = MountConfig::default();
+        let cases = [
+            (
+                MountConfig {
+                    ra_steps_per_worm_turn: 1,
+                    worm_period_s: f32::MAX,
+                    ..d
+                },
+                Field::WormPeriodS,
+            ),
+            (
+                MountConfig {
+                    dec_steps_per_degree: 1e-45,
+                    ..d
+                },
+                Field::DecStepsPerDegree,
+            ),
+            (
+                MountConfig {
+                    guide_rate_sidereal: 1e-45,
+                    ..d
+                },
+                Field::GuideRateSidereal,
+            ),
+            (
+                MountConfig {
+                    guider_aggressiveness: 1e-45,
+                    ..d
+                },
+                Field::GuiderAggressiveness,
+            ),
+            (
+                MountConfig {
+                    ra_steps_per_worm_turn: 1,
+                    ..d
+                },
+                Field::RaStepsPerWormTurn,
+            ),
+        ];
+        for (c, field) in cases {
+            assert_eq!(refused(c).field, field, "{c:?}");
+        }
+    }
+
+    /// A value near `typical` (within a factor of 30 either way), an extreme
+    /// or raw bits: configurations both valid and refused.
+    fn draw(rng: &mut u64, typical: f64) -> f64 {
+        *rng ^= *rng << 13;
+        *rng ^= *rng >> 7;
+        *rng ^= *rng << 17;
+        let r = *rng;
+        match r % 8 {
+            0 => f64::from(f32::from_bits((r >> 32) as u32)),
+            1 => [0.0, -1.0, 1e-45, f64::MAX, f64::NAN, u32::MAX as f64][(r >> 8) as usize % 6],
+            _ => typical * 30f64.powf(((r >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0),
+        }
+    }
+
+    #[test]
+    fn random_configs_are_refused_by_name_or_derive_sane_values() {
+        let d = MountConfig::default();
+        let mut rng = 0x9E37_79B9_7F4A_7C15u64;
+        let (mut ok, mut refused_by) = (0usize, [0usize; 12]);
+        for _ in 0..300_000 {
+            let mut c = d;
+            for field in Field::ALL {
+                let typical = match d.get(field) {
+                    Value::Count(v) => f64::from(v),
+                    Value::Real(v) => f64::from(v),
+                };
+                // About half the fields keep their default.
+                if draw(&mut rng, 1.0) > 1.0 {
+                    set(&mut c, field, draw(&mut rng, typical));
+                }
+            }
+            match c.validate() {
+                Err(e) => {
+                    // Compared as text: a NaN value is not equal to itself.
+                    assert_eq!(
+                        std::format!("{:?}", e.value),
+                        std::format!("{:?}", c.get(e.field))
+                    );
+                    let i = Field::ALL.iter().position(|&f| f == e.field).unwrap();
+                    refused_by[i] += 1;
+                }
+                Ok(m) => {
+                    ok += 1;
+                    let tick_half = c.step_tick_hz as f32 / 2.0;
+                    for v in [
+                        m.sidereal_ra_steps_per_s(),
+                        m.guide_ra_steps_per_s(),
+                        m.guide_dec_steps_per_s(),
+                        m.guide_rate_arcsec_per_s(),
+                    ] {
+                        assert!(v.is_finite() && v > 0.0, "{c:?}");
+                    }
+                    for v in [m.arcsec_per_ra_step(), m.arcsec_per_dec_step()] {
+                        assert!(
+                            v > 0.0 && v <= MAX_ARCSEC_PER_STEP as f32 * 1.000_001,
+                            "{c:?}"
+                        );
+                    }
+                    for v in [m.max_ra_steps_per_s(), m.max_dec_steps_per_s()] {
+                        assert!(v > 0.0 && v <= tick_half * 1.000_001, "{c:?}");
+                    }
+                }
+            }
+        }
+        // Both outcomes, and every field's refusal, were exercised.
+        assert!(ok > 1_000, "{ok} accepted");
+        assert!(refused_by.iter().all(|&n| n > 0), "{refused_by:?}");
+    }
+
+    #[test]
+    fn errors_print_the_field_the_value_and_the_rule() {
+        let e = refused(with(Field::GuideRateSidereal, 1.5));
+        assert_eq!(
+            std::format!("{e}"),
+            "mount config: guide_rate_sidereal = 1.5: must be 0.1 to 1 (x sidereal)"
+        );
+        let e = refused(with(Field::SilenceFrames, 0.0));
+        assert_eq!(
+            std::format!("{e}"),
+            "mount config: silence_frames = 0: must be 1 to 1000"
+        );
     }
 }
