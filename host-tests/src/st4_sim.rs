@@ -40,7 +40,7 @@
 //!   thirds, t >= 3600 s of the 10 800 s run.
 
 use crate::cases::Case;
-use crate::controller::{Controller, Hysteresis};
+use crate::guide_algorithm::{GuideAlgorithm, Hysteresis};
 use crate::noise::Gaussian;
 use mkgp_mount::control_loop::st4_feed::{EdgeQueue, EdgeSource, RawEdge};
 use mkgp_mount::control_loop::stepping::AxisStepper;

@@ -1,9 +1,9 @@
 //! The paper's table: residual RMS per case and noise level for the open
-//! loop, the reactive controller (hysteresis 0.6), PPEC and MKGP.
+//! loop, the reactive guide algorithm (hysteresis 0.6), PPEC and MKGP.
 
 use crate::cases::Case;
 use crate::closed_loop::{self, Noise, NOISY_SEEDS};
-use crate::controller::{Controller, Hysteresis};
+use crate::guide_algorithm::{GuideAlgorithm, Hysteresis};
 use crate::models::{self, Model};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
@@ -35,10 +35,10 @@ struct Job {
     noise: Noise,
 }
 
-fn make(column: Column) -> Box<dyn Controller + Send> {
+fn make(column: Column) -> Box<dyn GuideAlgorithm + Send> {
     match column {
         Column::Reactive => Box::new(Hysteresis::paper()),
-        Column::Model(m) => models::controller(m, None, None),
+        Column::Model(m) => models::algorithm(m, None, None),
     }
 }
 

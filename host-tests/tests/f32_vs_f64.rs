@@ -29,9 +29,9 @@
 
 use host_tests::cases::{self, Case};
 use host_tests::closed_loop::{self, Noise};
-use host_tests::controller::Controller;
 use host_tests::data;
-use host_tests::gp::GpController;
+use host_tests::gp::GpAlgorithm;
+use host_tests::guide_algorithm::GuideAlgorithm;
 use mkgp_mount::model::guider::{Guider, GuiderConfig};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Mutex, OnceLock};
@@ -61,7 +61,7 @@ struct Recorder<C> {
     frames: Vec<Frame>,
 }
 
-impl<C: Controller> Controller for Recorder<C> {
+impl<C: GuideAlgorithm> GuideAlgorithm for Recorder<C> {
     fn step(&mut self, t: f64, measured: f64, snr: f64, dt: f64) -> f64 {
         let control = self.inner.step(t, measured, snr, dt);
         self.frames.push(Frame {
@@ -99,7 +99,7 @@ fn rel(pair: (f64, f64)) -> f64 {
     pair.1 / pair.0 - 1.0
 }
 
-fn recorded<C: Controller>(case: &Case, inner: C, noise: Noise) -> (f64, Vec<Frame>) {
+fn recorded<C: GuideAlgorithm>(case: &Case, inner: C, noise: Noise) -> (f64, Vec<Frame>) {
     let mut rec = Recorder {
         inner,
         frames: Vec::new(),
@@ -163,20 +163,20 @@ fn uncorrected_replay<const N: usize>(frames: &[Frame]) -> (f64, f64) {
 }
 
 fn figures<const N: usize>(case: &Case) -> Figures {
-    let (noisy64, run64) = recorded(case, GpController::<N, f64>::new(None, None), NOISE);
-    let (noisy32, run32) = recorded(case, GpController::<N, f32>::new(None, None), NOISE);
+    let (noisy64, run64) = recorded(case, GpAlgorithm::<N, f64>::new(None, None), NOISE);
+    let (noisy32, run32) = recorded(case, GpAlgorithm::<N, f32>::new(None, None), NOISE);
     let (output_rms, output_max, output_max_at_s) = compare(&case.name, &run64, &run32);
     let control_rms =
         (run64.iter().map(|f| f.control * f.control).sum::<f64>() / run64.len() as f64).sqrt();
     let (uncorrected_rms, uncorrected_max_du) = uncorrected_replay::<N>(&run64);
     let clean64 = closed_loop::run(
         case,
-        &mut GpController::<N, f64>::new(None, None),
+        &mut GpAlgorithm::<N, f64>::new(None, None),
         Noise::None,
     );
     let clean32 = closed_loop::run(
         case,
-        &mut GpController::<N, f32>::new(None, None),
+        &mut GpAlgorithm::<N, f32>::new(None, None),
         Noise::None,
     );
     Figures {

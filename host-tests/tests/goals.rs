@@ -7,8 +7,8 @@
 //!   on each of the PHD2 logs 01-05.
 
 use host_tests::cases;
-use host_tests::controller::Hysteresis;
 use host_tests::data::{cases_file, phd2_logs};
+use host_tests::guide_algorithm::Hysteresis;
 use host_tests::models::{self, Model};
 use host_tests::phd2_log;
 use host_tests::replay;
@@ -73,7 +73,7 @@ fn replay_gains_at_least_indigo() {
         let hyst = replay::run(&log, &mut Hysteresis::phd2_baseline()).unwrap();
         let mkgp = replay::run(
             &log,
-            &mut *models::controller(Model::Mkgp, Some(0.7), Some(0.5)),
+            &mut *models::algorithm(Model::Mkgp, Some(0.7), Some(0.5)),
         )
         .unwrap();
         let gain = replay::gain_pct(mkgp.rms, hyst.rms);

@@ -11,8 +11,8 @@
 
 use host_tests::bench::{self, BenchRow, TargetRun};
 use host_tests::cases;
-use host_tests::controller::{Controller, Hysteresis};
 use host_tests::data::{self, Error};
+use host_tests::guide_algorithm::{GuideAlgorithm, Hysteresis};
 use host_tests::models::{self, Model};
 use host_tests::phd2_log::{self, GuideLog};
 use host_tests::replay::{self, ReplayResult};
@@ -161,11 +161,11 @@ enum Kind {
     Model(Model),
 }
 
-fn replay_controller(kind: Kind) -> Box<dyn Controller + Send> {
+fn replay_algorithm(kind: Kind) -> Box<dyn GuideAlgorithm + Send> {
     match kind {
         Kind::Hysteresis => Box::new(Hysteresis::phd2_baseline()),
         Kind::Model(m) => {
-            models::controller(m, Some(REPLAY_CONTROL_GAIN), Some(REPLAY_PREDICTION_GAIN))
+            models::algorithm(m, Some(REPLAY_CONTROL_GAIN), Some(REPLAY_PREDICTION_GAIN))
         }
     }
 }
@@ -231,7 +231,7 @@ fn cmd_replay(args: &[String]) -> ExitCode {
                     break;
                 };
                 let log = logs[i].as_ref().unwrap();
-                let r = replay::run(log, &mut replay_controller(kinds[k]));
+                let r = replay::run(log, &mut replay_algorithm(kinds[k]));
                 results.lock().unwrap()[i][k] = Some(r);
             });
         }
