@@ -29,7 +29,7 @@ pub fn algorithm(
     model: Model,
     control_gain: Option<f64>,
     prediction_gain: Option<f64>,
-) -> Box<dyn GuideAlgorithm + Send> {
+) -> Box<dyn GuideAlgorithm> {
     match model {
         Model::Ppec => Box::new(GpAlgorithm::<1>::new(control_gain, prediction_gain)),
         Model::Mkgp => Box::new(GpAlgorithm::<2>::new(control_gain, prediction_gain)),

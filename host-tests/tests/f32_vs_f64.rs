@@ -33,8 +33,8 @@ use host_tests::data;
 use host_tests::gp::GpAlgorithm;
 use host_tests::guide_algorithm::GuideAlgorithm;
 use mkgp_mount::model::guider::{Guider, GuiderConfig};
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::{Mutex, OnceLock};
+use rayon::prelude::*;
+use std::sync::OnceLock;
 
 /// Largest RMS of control_f32 - control_f64 over the frames (px).
 const OUTPUT_RMS_TOLERANCE_PX: f64 = 0.01;
@@ -193,8 +193,8 @@ fn figures<const N: usize>(case: &Case) -> Figures {
     }
 }
 
-/// All 16 runs, computed once on as many threads as there are cores and
-/// shared by the tests.
+/// All 16 runs, computed once on rayon's threads (in the order of the
+/// jobs) and shared by the tests.
 fn all_figures() -> &'static [Figures] {
     static FIGURES: OnceLock<Vec<Figures>> = OnceLock::new();
     FIGURES.get_or_init(|| {
@@ -204,27 +204,13 @@ fn all_figures() -> &'static [Figures] {
             .iter()
             .flat_map(|c| [(c, 1), (c, 2)])
             .collect();
-        let next = AtomicUsize::new(0);
-        let out = Mutex::new(Vec::new());
-        let threads = std::thread::available_parallelism().map_or(2, |n| n.get());
-        std::thread::scope(|s| {
-            for _ in 0..threads.min(jobs.len()) {
-                s.spawn(|| loop {
-                    let i = next.fetch_add(1, Ordering::Relaxed);
-                    let Some(&(case, n)) = jobs.get(i) else {
-                        break;
-                    };
-                    let f = match n {
-                        1 => figures::<1>(case),
-                        _ => figures::<2>(case),
-                    };
-                    out.lock().unwrap().push((i, f));
-                });
-            }
-        });
-        let mut out = out.into_inner().unwrap();
-        out.sort_by_key(|(i, _)| *i);
-        let figures: Vec<Figures> = out.into_iter().map(|(_, f)| f).collect();
+        let figures: Vec<Figures> = jobs
+            .into_par_iter()
+            .map(|(case, n)| match n {
+                1 => figures::<1>(case),
+                _ => figures::<2>(case),
+            })
+            .collect();
         println!(
             "case N | ctrl diff RMS   max (at s) | ctrl RMS | clean f64  f32   rel       | \
              noisy f64  f32   rel       | uncorrected replay: diff RMS, max |U32-U64|"

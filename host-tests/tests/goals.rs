@@ -32,7 +32,7 @@ const INDIGO_GAIN_PCT: [f64; 5] = [0.27, 0.10, 12.26, 8.31, 2.22];
 #[test]
 fn table_meets_the_paper() {
     let cases = cases::load(&cases_file()).unwrap_or_else(|e| panic!("{e}"));
-    let rows = table::compute(&cases, 2);
+    let rows = table::compute(&cases);
     let mut failures = Vec::new();
     for r in &rows {
         let (_, free, noisy) = *PAPER_MKGP

@@ -18,10 +18,9 @@ use host_tests::phd2_log::{self, GuideLog};
 use host_tests::replay::{self, ReplayResult};
 use host_tests::st4_sim;
 use host_tests::{svg, table};
+use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Mutex;
 
 const USAGE: &str = "\
 usage: guide-sim table [--cases FILE] [--csv]
@@ -59,10 +58,6 @@ const REPLAY_PREDICTION_GAIN: f64 = 0.5;
 fn usage_error(msg: &str) -> ExitCode {
     eprintln!("guide-sim: {msg}\n\n{USAGE}");
     ExitCode::from(2)
-}
-
-fn threads() -> usize {
-    std::thread::available_parallelism().map_or(2, |n| n.get())
 }
 
 fn main() -> ExitCode {
@@ -116,7 +111,7 @@ fn cmd_table(args: &[String]) -> ExitCode {
     let Some((_, cases)) = load_cases(cases_path) else {
         return ExitCode::FAILURE;
     };
-    let rows = table::compute(&cases, threads());
+    let rows = table::compute(&cases);
     if csv {
         println!("case,noise_px,open_loop,reactive,ppec,mkgp");
         for r in &rows {
@@ -161,7 +156,14 @@ enum Kind {
     Model(Model),
 }
 
-fn replay_algorithm(kind: Kind) -> Box<dyn GuideAlgorithm + Send> {
+/// The replay's columns, in the order `cmd_replay` reads its results.
+const KINDS: [Kind; 3] = [
+    Kind::Model(Model::Mkgp),
+    Kind::Model(Model::Ppec),
+    Kind::Hysteresis,
+];
+
+fn replay_algorithm(kind: Kind) -> Box<dyn GuideAlgorithm> {
     match kind {
         Kind::Hysteresis => Box::new(Hysteresis::phd2_baseline()),
         Kind::Model(m) => {
@@ -208,35 +210,19 @@ fn cmd_replay(args: &[String]) -> ExitCode {
             }
         })
         .collect();
-    let kinds = [
-        Kind::Model(Model::Mkgp),
-        Kind::Model(Model::Ppec),
-        Kind::Hysteresis,
-    ];
-    let jobs: Vec<(usize, usize)> = (0..kinds.len())
-        .flat_map(|k| {
-            logs.iter()
-                .enumerate()
-                .filter(|(_, l)| l.is_some())
-                .map(move |(i, _)| (i, k))
+    // One run per (log, kind), collected in the order of the logs and KINDS.
+    let results: Vec<Option<Vec<Result<ReplayResult, Error>>>> = logs
+        .par_iter()
+        .map(|log| {
+            let log = log.as_ref()?;
+            Some(
+                KINDS
+                    .par_iter()
+                    .map(|&k| replay::run(log, &mut replay_algorithm(k)))
+                    .collect(),
+            )
         })
         .collect();
-    let results: Mutex<Vec<Vec<Option<Result<ReplayResult, Error>>>>> =
-        Mutex::new(vec![vec![None, None, None]; logs.len()]);
-    let next = AtomicUsize::new(0);
-    std::thread::scope(|s| {
-        for _ in 0..threads() {
-            s.spawn(|| loop {
-                let Some(&(i, k)) = jobs.get(next.fetch_add(1, Ordering::Relaxed)) else {
-                    break;
-                };
-                let log = logs[i].as_ref().unwrap();
-                let r = replay::run(log, &mut replay_algorithm(kinds[k]));
-                results.lock().unwrap()[i][k] = Some(r);
-            });
-        }
-    });
-    let results = results.into_inner().unwrap();
     if csv {
         println!("log,frames,hysteresis_rms,ppec_rms,mkgp_rms,ppec_gain_pct,mkgp_gain_pct");
     } else {
@@ -252,8 +238,10 @@ fn cmd_replay(args: &[String]) -> ExitCode {
         );
     }
     for (log, res) in logs.iter().zip(results) {
-        let Some(log) = log else { continue };
-        let res: Result<Vec<ReplayResult>, Error> = res.into_iter().map(|r| r.unwrap()).collect();
+        let (Some(log), Some(res)) = (log, res) else {
+            continue;
+        };
+        let res: Result<Vec<ReplayResult>, Error> = res.into_iter().collect();
         let r = match res {
             Ok(r) => r,
             Err(e) => {
@@ -468,7 +456,7 @@ fn cmd_st4(args: &[String]) -> ExitCode {
         Some(x) => vec![x],
         None => vec![0.0, 1.0],
     };
-    let rows = st4_sim::table(&cases, &levels, threads());
+    let rows = st4_sim::table(&cases, &levels);
     if csv {
         println!("{}", st4_sim::CSV_HEADER);
         for r in &rows {
