@@ -380,7 +380,7 @@ impl Rig {
                 self.guiding_task();
                 self.learning.run(t, &mut self.frames);
             }
-            if t % SAMPLE_US == 0 {
+            if t.is_multiple_of(SAMPLE_US) {
                 self.sample();
             }
         }
