@@ -19,7 +19,7 @@
 
 use crate::cases::Case;
 use crate::closed_loop::{self, Noise};
-use crate::controller::Controller;
+use crate::guide_algorithm::GuideAlgorithm;
 use mkgp_mount::model::guider::{Guider, GuiderConfig};
 use mkgp_mount::model::numeric::scalar::Scalar;
 use std::path::{Path, PathBuf};
@@ -92,7 +92,7 @@ pub fn percentile<T: Copy>(sorted: &[T], p: f64) -> T {
     sorted[rank.clamp(1, sorted.len()) - 1]
 }
 
-/// The library's guider as a [`Controller`] that times each `frame` call
+/// The library's guider as a [`GuideAlgorithm`] that times each `frame` call
 /// of the active frames.
 struct Timed<S: Scalar, const N: usize> {
     guider: Box<Guider<S, N>>,
@@ -100,7 +100,7 @@ struct Timed<S: Scalar, const N: usize> {
     ns: Vec<u64>,
 }
 
-impl<S: Scalar, const N: usize> Controller for Timed<S, N> {
+impl<S: Scalar, const N: usize> GuideAlgorithm for Timed<S, N> {
     fn step(&mut self, t: f64, measured: f64, snr: f64, dt: f64) -> f64 {
         let (input, snr, dt) =
             std::hint::black_box((S::from_f64(measured), S::from_f64(snr), S::from_f64(dt)));

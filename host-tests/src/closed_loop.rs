@@ -1,6 +1,6 @@
 //! The paper's synthetic closed loop (docs/reference.md section 3).
 //!
-//! Frames at t = 0, 2, ..., 10798 s. At each frame the controller sees
+//! Frames at t = 0, 2, ..., 10798 s. At each frame the guide algorithm sees
 //! y = g(t) - U + noise, where U is the sum of the controls already applied,
 //! and its control is added to U before the next frame. The residual of a
 //! frame is g(t) - U with U taken *before* that frame's correction (what the
@@ -10,12 +10,13 @@
 //! Why U before the correction: it reproduces the hysteresis figures of docs/reference.md
 //! (e.g. C1 0.332 / 0.705); U after the correction would give 0.152 / 0.637.
 //!
-//! The controller gets SNR 10 (INDIGO's value when the SNR is unknown; the
+//! The guide algorithm gets SNR 10 (INDIGO's value when the SNR is unknown; the
 //! reference traces carry it) and dt = 2 s.
 
 use crate::cases::Case;
-use crate::controller::{Controller, OpenLoop};
+use crate::guide_algorithm::{GuideAlgorithm, OpenLoop};
 use crate::noise::Gaussian;
+use rayon::prelude::*;
 
 /// Time between frames (s).
 pub const DT: f64 = 2.0;
@@ -23,7 +24,7 @@ pub const DT: f64 = 2.0;
 pub const FRAMES: usize = 5400;
 /// Frames from this time on are scored (s).
 pub const SCORE_FROM_S: f64 = 3600.0;
-/// The SNR the controller is given.
+/// The SNR the guide algorithm is given.
 pub const SNR: f64 = 10.0;
 /// The noisy runs: N(0, 1 px), seeds 1, 2, 3, mean of the three residuals.
 pub const NOISY_SEEDS: [u64; 3] = [1, 2, 3];
@@ -45,7 +46,7 @@ pub fn frame_times() -> impl Iterator<Item = f64> {
 }
 
 /// Run the loop; returns the residual RMS over t >= 3600 s.
-pub fn run(case: &Case, controller: &mut dyn Controller, noise: Noise) -> f64 {
+pub fn run(case: &Case, algorithm: &mut dyn GuideAlgorithm, noise: Noise) -> f64 {
     let mut gauss = match noise {
         Noise::None => None,
         Noise::Gaussian { sigma_px, seed } => Some((sigma_px, Gaussian::new(seed))),
@@ -63,7 +64,7 @@ pub fn run(case: &Case, controller: &mut dyn Controller, noise: Noise) -> f64 {
             Some((sigma, gen)) => *sigma * gen.next(),
             None => 0.0,
         };
-        applied += controller.step(t, residual + n, SNR, DT);
+        applied += algorithm.step(t, residual + n, SNR, DT);
     }
     (sum_sq / count as f64).sqrt()
 }
@@ -74,15 +75,17 @@ pub fn open_loop_rms(case: &Case) -> f64 {
 }
 
 /// Mean residual RMS over [`NOISY_SEEDS`] with N(0, sigma^2) noise; `make`
-/// builds a fresh controller for each seed.
-pub fn mean_noisy_rms<C: Controller>(
+/// builds a fresh guide algorithm for each seed. The seeds run in parallel;
+/// their residuals are added in seed order, so the mean does not depend on
+/// the scheduling.
+pub fn mean_noisy_rms<A: GuideAlgorithm>(
     case: &Case,
     sigma_px: f64,
-    mut make: impl FnMut() -> C,
+    make: impl Fn() -> A + Sync,
 ) -> f64 {
-    let total: f64 = NOISY_SEEDS
-        .iter()
+    let rms: Vec<f64> = NOISY_SEEDS
+        .par_iter()
         .map(|&seed| run(case, &mut make(), Noise::Gaussian { sigma_px, seed }))
-        .sum();
-    total / NOISY_SEEDS.len() as f64
+        .collect();
+    rms.iter().sum::<f64>() / rms.len() as f64
 }

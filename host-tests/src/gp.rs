@@ -1,6 +1,6 @@
-//! The library's Gaussian-process guider as a [`Controller`].
+//! The library's Gaussian-process guider as a [`GuideAlgorithm`].
 
-use crate::controller::Controller;
+use crate::guide_algorithm::GuideAlgorithm;
 use mkgp_mount::model::guider::{Guider, GuiderConfig};
 use mkgp_mount::model::numeric::scalar::Scalar;
 
@@ -9,11 +9,11 @@ use mkgp_mount::model::numeric::scalar::Scalar;
 /// `f32` (what runs on the target). The simulators work in `f64`: the
 /// measurement is rounded to `S` on the way in and the control widened on
 /// the way out. Boxed: the guider is about 100 KiB.
-pub struct GpController<const N: usize, S: Scalar = f64> {
+pub struct GpAlgorithm<const N: usize, S: Scalar = f64> {
     guider: Box<Guider<S, N>>,
 }
 
-impl<const N: usize, S: Scalar> GpController<N, S> {
+impl<const N: usize, S: Scalar> GpAlgorithm<N, S> {
     /// `None` keeps the library's default gain.
     pub fn new(control_gain: Option<f64>, prediction_gain: Option<f64>) -> Self {
         let mut config = GuiderConfig::<S>::default();
@@ -23,7 +23,7 @@ impl<const N: usize, S: Scalar> GpController<N, S> {
         if let Some(g) = prediction_gain {
             config.prediction_gain = S::from_f64(g);
         }
-        GpController {
+        GpAlgorithm {
             guider: Box::new(Guider::new(config)),
         }
     }
@@ -33,7 +33,7 @@ impl<const N: usize, S: Scalar> GpController<N, S> {
     }
 }
 
-impl<const N: usize, S: Scalar> Controller for GpController<N, S> {
+impl<const N: usize, S: Scalar> GuideAlgorithm for GpAlgorithm<N, S> {
     fn step(&mut self, t: f64, measured: f64, snr: f64, dt: f64) -> f64 {
         self.guider
             .frame(t, S::from_f64(measured), S::from_f64(snr), S::from_f64(dt))

@@ -1,6 +1,6 @@
 //! Host-side tools for `mkgp-mount`: the paper's synthetic gear-error cases
 //! and closed loop, PHD2 guide-log parsing and PHD2's causal replay, and the
-//! controllers they drive (PHD2's hysteresis and the library's
+//! guide algorithms they drive (PHD2's hysteresis and the library's
 //! Gaussian-process guider).
 //!
 //! The test data (`synthetic_cases.csv`, `phd2-logs/`, `reference-traces/`)
@@ -9,9 +9,9 @@
 pub mod bench;
 pub mod cases;
 pub mod closed_loop;
-pub mod controller;
 pub mod data;
 pub mod gp;
+pub mod guide_algorithm;
 pub mod models;
 pub mod noise;
 pub mod phd2_log;

@@ -1,9 +1,9 @@
 //! The one place that decides what the `ppec` and `mkgp` columns run: the
-//! library's Gaussian-process guider ([`crate::gp::GpController`]) with 1
+//! library's Gaussian-process guider ([`crate::gp::GpAlgorithm`]) with 1
 //! periodic stage (PPEC) or 2 (MKGP).
 
-use crate::controller::Controller;
-use crate::gp::GpController;
+use crate::gp::GpAlgorithm;
+use crate::guide_algorithm::GuideAlgorithm;
 
 /// A Gaussian-process model for the simulators.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -23,15 +23,15 @@ impl Model {
     }
 }
 
-/// A fresh controller for `model`. `control_gain` and `prediction_gain` as in
+/// A fresh guide algorithm for `model`. `control_gain` and `prediction_gain` as in
 /// PHD2 (`None`: the library's defaults, 0.6 and 0.5).
-pub fn controller(
+pub fn algorithm(
     model: Model,
     control_gain: Option<f64>,
     prediction_gain: Option<f64>,
-) -> Box<dyn Controller + Send> {
+) -> Box<dyn GuideAlgorithm> {
     match model {
-        Model::Ppec => Box::new(GpController::<1>::new(control_gain, prediction_gain)),
-        Model::Mkgp => Box::new(GpController::<2>::new(control_gain, prediction_gain)),
+        Model::Ppec => Box::new(GpAlgorithm::<1>::new(control_gain, prediction_gain)),
+        Model::Mkgp => Box::new(GpAlgorithm::<2>::new(control_gain, prediction_gain)),
     }
 }

@@ -2,7 +2,7 @@
 //!
 //! With m[i] = RARawDistance and c[i] = RAGuideDistance (+ dither) of the
 //! log's frames, the simulated mount state starts at x_0 = m[0]; at frame i
-//! the controller sees x_i (with the row's time and SNR, dt = the log's
+//! the guide algorithm sees x_i (with the row's time and SNR, dt = the log's
 //! exposure) and returns u_i, and the state moves by
 //! (m[i+1] - (m[i] - c[i])) - u_i: the gear's own motion between the frames
 //! as the log recorded it, minus the simulated control.
@@ -15,7 +15,7 @@
 //!   c of the first frame after the line. That frame's RAGuideDistance is the
 //!   dither move itself (about -X); with X added the state carries on
 //!   smoothly. This reproduces the traces' inputs to 1e-14 on every frame.
-//!   The controller is *not* told about the dither (the reference outputs
+//!   The guide algorithm is *not* told about the dither (the reference outputs
 //!   after a dither are the model's normal control, not its post-dither mode).
 //! - The RMS is over the states after each control, x_1 .. x_{n-2}. That
 //!   reproduces INDIGO's improvements (docs/reference.md) 0.27, 0.10, 12.26, 8.31 and
@@ -23,13 +23,13 @@
 //! - Baseline: hysteresis, aggressiveness 0.7, hysteresis 0.1, min move 0.2
 //!   (PHD2's defaults; min moves 0.15 or 0.1 do not reproduce the figures).
 
-use crate::controller::Controller;
 use crate::data::Error;
+use crate::guide_algorithm::GuideAlgorithm;
 use crate::phd2_log::GuideLog;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ReplayResult {
-    /// Number of controller calls (frames of the log minus two).
+    /// Number of guide algorithm calls (frames of the log minus two).
     pub frames: usize,
     /// RMS of the simulated state after each control (px).
     pub rms: f64,
@@ -44,8 +44,8 @@ pub fn corrections(log: &GuideLog) -> Vec<f64> {
     c
 }
 
-/// Replay `log` with `controller`.
-pub fn run(log: &GuideLog, controller: &mut dyn Controller) -> Result<ReplayResult, Error> {
+/// Replay `log` with `algorithm`.
+pub fn run(log: &GuideLog, algorithm: &mut dyn GuideAlgorithm) -> Result<ReplayResult, Error> {
     let n = log.frames.len();
     if n < 3 {
         return Err(Error::new(
@@ -61,7 +61,7 @@ pub fn run(log: &GuideLog, controller: &mut dyn Controller) -> Result<ReplayResu
     let mut sum_sq = 0.0;
     for i in 0..frames {
         let f = &log.frames[i];
-        let u = controller.step(f.time_s, x, f.snr, log.exposure_s);
+        let u = algorithm.step(f.time_s, x, f.snr, log.exposure_s);
         x += (m[i + 1] - (m[i] - c[i])) - u;
         sum_sq += x * x;
     }

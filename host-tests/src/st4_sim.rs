@@ -40,7 +40,7 @@
 //!   thirds, t >= 3600 s of the 10 800 s run.
 
 use crate::cases::Case;
-use crate::controller::{Controller, Hysteresis};
+use crate::guide_algorithm::{GuideAlgorithm, Hysteresis};
 use crate::noise::Gaussian;
 use mkgp_mount::control_loop::st4_feed::{EdgeQueue, EdgeSource, RawEdge};
 use mkgp_mount::control_loop::stepping::AxisStepper;
@@ -50,6 +50,7 @@ use mkgp_mount::mount::frame::{FeedForward, Frame, Rates};
 use mkgp_mount::mount::guiding::{Guiding, GuidingCounters, FRAME_QUEUE};
 use mkgp_mount::mount::learner::{Learner, LearnerCounters};
 use mkgp_mount::mount::st4::{Line, St4Counters};
+use rayon::prelude::*;
 use std::collections::VecDeque;
 
 /// Length of a run, s.
@@ -81,8 +82,6 @@ pub enum Firmware {
     /// `Learner<2>`.
     Mkgp,
 }
-
-pub const FIRMWARES: [Firmware; 3] = [Firmware::GuiderOnly, Firmware::Ppec, Firmware::Mkgp];
 
 enum AnyLearner {
     None,
@@ -381,7 +380,7 @@ impl Rig {
                 self.guiding_task();
                 self.learning.run(t, &mut self.frames);
             }
-            if t % SAMPLE_US == 0 {
+            if t.is_multiple_of(SAMPLE_US) {
                 self.sample();
             }
         }
@@ -526,55 +525,38 @@ pub struct Row {
 
 pub const CSV_HEADER: &str = "case,noise_px,guider_only,fw_ppec,fw_mkgp";
 
-/// The table for `cases` and noise levels (0: one noise-free run; else the
-/// mean over [`SEEDS`]), on `threads` threads.
-pub fn table(cases: &[Case], noise_levels: &[f64], threads: usize) -> Vec<Row> {
-    use std::sync::atomic::{AtomicUsize, Ordering};
-    use std::sync::Mutex;
-    // (row, firmware, seed index)
-    let mut jobs = Vec::new();
-    for fw in [Firmware::Mkgp, Firmware::Ppec, Firmware::GuiderOnly] {
-        for ci in 0..cases.len() {
-            for (li, &noise) in noise_levels.iter().enumerate() {
-                let seeds: &[u64] = if noise > 0.0 { &SEEDS } else { &SEEDS[..1] };
-                for &seed in seeds {
-                    jobs.push((ci * noise_levels.len() + li, fw, noise, seed));
-                }
-            }
-        }
-    }
-    let sums = Mutex::new(vec![[(0.0f64, 0u32); 3]; cases.len() * noise_levels.len()]);
-    let next = AtomicUsize::new(0);
-    std::thread::scope(|s| {
-        for _ in 0..threads.max(1) {
-            s.spawn(|| loop {
-                let Some(&(row, fw, noise, seed)) = jobs.get(next.fetch_add(1, Ordering::Relaxed))
-                else {
-                    break;
-                };
-                let case = &cases[row / noise_levels.len()];
-                let r = run(case, fw, noise, seed);
-                let k = FIRMWARES.iter().position(|&f| f == fw).unwrap();
-                let mut sums = sums.lock().unwrap();
-                sums[row][k].0 += r.rms;
-                sums[row][k].1 += 1;
-            });
-        }
-    });
-    let sums = sums.into_inner().unwrap();
-    let mut rows = Vec::new();
-    for (ci, case) in cases.iter().enumerate() {
-        for (li, &noise) in noise_levels.iter().enumerate() {
-            let s = sums[ci * noise_levels.len() + li];
-            let m = |k: usize| s[k].0 / s[k].1.max(1) as f64;
-            rows.push(Row {
+/// Mean pointing RMS of `firmware` on `case` with `noise_px` of noise (0:
+/// one noise-free run; else the mean over [`SEEDS`], added in seed order).
+fn mean_rms(case: &Case, firmware: Firmware, noise_px: f64) -> f64 {
+    let seeds: &[u64] = if noise_px > 0.0 { &SEEDS } else { &SEEDS[..1] };
+    let rms: Vec<f64> = seeds
+        .par_iter()
+        .map(|&seed| run(case, firmware, noise_px, seed).rms)
+        .collect();
+    rms.iter().sum::<f64>() / rms.len() as f64
+}
+
+/// The table for `cases` and noise levels, one row per case and level in
+/// that order; the runs are spread over rayon's threads.
+pub fn table(cases: &[Case], noise_levels: &[f64]) -> Vec<Row> {
+    let rows: Vec<(&Case, f64)> = cases
+        .iter()
+        .flat_map(|case| noise_levels.iter().map(move |&noise| (case, noise)))
+        .collect();
+    rows.into_par_iter()
+        .map(|(case, noise)| {
+            let firmware = |fw| mean_rms(case, fw, noise);
+            let (guider_only, (fw_ppec, fw_mkgp)) = rayon::join(
+                || firmware(Firmware::GuiderOnly),
+                || rayon::join(|| firmware(Firmware::Ppec), || firmware(Firmware::Mkgp)),
+            );
+            Row {
                 case: case.name.clone(),
                 noise_px: noise,
-                guider_only: m(0),
-                fw_ppec: m(1),
-                fw_mkgp: m(2),
-            });
-        }
-    }
-    rows
+                guider_only,
+                fw_ppec,
+                fw_mkgp,
+            }
+        })
+        .collect()
 }

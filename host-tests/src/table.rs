@@ -1,12 +1,11 @@
 //! The paper's table: residual RMS per case and noise level for the open
-//! loop, the reactive controller (hysteresis 0.6), PPEC and MKGP.
+//! loop, the reactive guide algorithm (hysteresis 0.6), PPEC and MKGP.
 
 use crate::cases::Case;
-use crate::closed_loop::{self, Noise, NOISY_SEEDS};
-use crate::controller::{Controller, Hysteresis};
+use crate::closed_loop::{self, Noise};
+use crate::guide_algorithm::{GuideAlgorithm, Hysteresis};
 use crate::models::{self, Model};
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Mutex;
+use rayon::prelude::*;
 
 /// The noise levels of the table (px): noise-free, and 1 px (mean of seeds 1-3).
 pub const NOISE_LEVELS: [f64; 2] = [0.0, 1.0];
@@ -27,87 +26,50 @@ enum Column {
     Model(Model),
 }
 
-#[derive(Debug, Clone, Copy)]
-struct Job {
-    case: usize,
-    level: usize,
-    column: Column,
-    noise: Noise,
-}
-
-fn make(column: Column) -> Box<dyn Controller + Send> {
+fn make(column: Column) -> Box<dyn GuideAlgorithm> {
     match column {
         Column::Reactive => Box::new(Hysteresis::paper()),
-        Column::Model(m) => models::controller(m, None, None),
+        Column::Model(m) => models::algorithm(m, None, None),
     }
 }
 
-/// Compute the table on `threads` worker threads (one closed-loop run per
-/// job; the slow model runs are queued first).
-pub fn compute(cases: &[Case], threads: usize) -> Vec<TableRow> {
-    let mut jobs = Vec::new();
-    for column in [
-        Column::Model(Model::Mkgp),
-        Column::Model(Model::Ppec),
-        Column::Reactive,
-    ] {
-        for (ci, _) in cases.iter().enumerate() {
-            for (level, &sigma_px) in NOISE_LEVELS.iter().enumerate() {
-                if sigma_px == 0.0 {
-                    jobs.push(Job {
-                        case: ci,
-                        level,
-                        column,
-                        noise: Noise::None,
-                    });
-                } else {
-                    for &seed in &NOISY_SEEDS {
-                        jobs.push(Job {
-                            case: ci,
-                            level,
-                            column,
-                            noise: Noise::Gaussian { sigma_px, seed },
-                        });
-                    }
-                }
-            }
-        }
+/// Residual RMS of `column` on `case` with `sigma_px` of noise (0: one
+/// noise-free run).
+fn rms(case: &Case, sigma_px: f64, column: Column) -> f64 {
+    if sigma_px == 0.0 {
+        closed_loop::run(case, &mut make(column), Noise::None)
+    } else {
+        closed_loop::mean_noisy_rms(case, sigma_px, || make(column))
     }
-    let next = AtomicUsize::new(0);
-    let results = Mutex::new(vec![0.0f64; jobs.len()]);
-    std::thread::scope(|s| {
-        for _ in 0..threads.max(1) {
-            s.spawn(|| loop {
-                let k = next.fetch_add(1, Ordering::Relaxed);
-                let Some(job) = jobs.get(k) else { break };
-                let rms = closed_loop::run(&cases[job.case], &mut make(job.column), job.noise);
-                results.lock().unwrap()[k] = rms;
-            });
-        }
-    });
-    let results = results.into_inner().unwrap();
-    let mean = |ci: usize, level: usize, column: Column| {
-        let v: Vec<f64> = jobs
-            .iter()
-            .zip(&results)
-            .filter(|(j, _)| j.case == ci && j.level == level && j.column == column)
-            .map(|(_, &r)| r)
-            .collect();
-        v.iter().sum::<f64>() / v.len() as f64
-    };
-    let mut rows = Vec::new();
-    for (ci, case) in cases.iter().enumerate() {
-        let open_loop = closed_loop::open_loop_rms(case);
-        for (level, &noise_px) in NOISE_LEVELS.iter().enumerate() {
-            rows.push(TableRow {
+}
+
+/// Compute the table, one row per case and noise level, in that order; the
+/// closed-loop runs are spread over rayon's threads.
+pub fn compute(cases: &[Case]) -> Vec<TableRow> {
+    let rows: Vec<(&Case, f64)> = cases
+        .iter()
+        .flat_map(|case| NOISE_LEVELS.map(|noise_px| (case, noise_px)))
+        .collect();
+    rows.into_par_iter()
+        .map(|(case, noise_px)| {
+            let column = |c| rms(case, noise_px, c);
+            let (reactive, (ppec, mkgp)) = rayon::join(
+                || column(Column::Reactive),
+                || {
+                    rayon::join(
+                        || column(Column::Model(Model::Ppec)),
+                        || column(Column::Model(Model::Mkgp)),
+                    )
+                },
+            );
+            TableRow {
                 case: case.name.clone(),
                 noise_px,
-                open_loop,
-                reactive: mean(ci, level, Column::Reactive),
-                ppec: mean(ci, level, Column::Model(Model::Ppec)),
-                mkgp: mean(ci, level, Column::Model(Model::Mkgp)),
-            });
-        }
-    }
-    rows
+                open_loop: closed_loop::open_loop_rms(case),
+                reactive,
+                ppec,
+                mkgp,
+            }
+        })
+        .collect()
 }

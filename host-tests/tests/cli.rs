@@ -118,11 +118,29 @@ fn replay_bad_log_fails_but_others_run() {
     );
 }
 
+/// A usage error: exit status 2 (clap's), nothing on stdout, and stderr
+/// names `what` and shows the usage line of `usage`.
+fn assert_usage_error(o: &Output, what: &str, usage: &str) {
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(o));
+    assert!(stdout(o).is_empty(), "{}", stdout(o));
+    let err = stderr(o);
+    assert!(err.contains(what), "{err}");
+    assert!(err.contains(&format!("Usage: {usage}")), "{err}");
+}
+
 #[test]
 fn unknown_subcommand_is_a_usage_error() {
     let o = guide_sim(&["frobnicate"]);
+    assert_usage_error(&o, "'frobnicate'", "guide-sim <COMMAND>");
+}
+
+#[test]
+fn no_subcommand_is_a_usage_error() {
+    let o = guide_sim(&[]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(stderr(&o).contains("usage:"));
+    for sub in ["table", "replay", "bench", "st4"] {
+        assert!(stderr(&o).contains(sub), "{}", stderr(&o));
+    }
 }
 
 #[test]
@@ -130,7 +148,81 @@ fn bench_unknown_option_is_a_usage_error() {
     // Only the argument check: the bench itself is timing-dependent and
     // runs QEMU, so no test runs it (test.sh prints its figures).
     let o = guide_sim(&["bench", "--frobnicate"]);
+    assert_usage_error(&o, "'--frobnicate'", "guide-sim bench");
+}
+
+#[test]
+fn replay_unknown_option_is_a_usage_error() {
+    let o = guide_sim(&["replay", "--frobnicate"]);
+    assert_usage_error(&o, "'--frobnicate'", "guide-sim replay");
+}
+
+#[test]
+fn option_without_its_value_is_a_usage_error() {
+    let o = guide_sim(&["table", "--cases"]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(stderr(&o).contains("usage:"));
-    assert!(stdout(&o).is_empty());
+    assert!(stderr(&o).contains("'--cases <FILE>'"), "{}", stderr(&o));
+}
+
+#[test]
+fn st4_noise_must_be_a_number_of_px() {
+    for bad in ["-1", "x", "inf", "NaN"] {
+        let o = guide_sim(&["st4", "--noise", bad]);
+        assert_eq!(o.status.code(), Some(2), "--noise {bad}");
+        let err = stderr(&o);
+        assert!(
+            err.contains(&format!("'{bad}' for '--noise <PX>'")) && err.contains(">= 0"),
+            "{err}"
+        );
+    }
+}
+
+#[test]
+fn each_subcommand_help_lists_its_options() {
+    for (sub, options) in [
+        ("table", &["--cases <FILE>", "--csv"][..]),
+        ("replay", &["[LOG]...", "--csv"]),
+        ("bench", &["--csv", "--host-only"]),
+        (
+            "st4",
+            &["--case <ID>", "--cases <FILE>", "--noise <PX>", "--csv"],
+        ),
+    ] {
+        let o = guide_sim(&[sub, "--help"]);
+        assert!(o.status.success(), "{sub}: {}", stderr(&o));
+        let out = stdout(&o);
+        assert!(out.contains(&format!("Usage: guide-sim {sub}")), "{out}");
+        for option in options {
+            assert!(out.contains(option), "{sub} --help lacks {option}:\n{out}");
+        }
+    }
+}
+
+#[test]
+fn help_lists_the_subcommands() {
+    let o = guide_sim(&["--help"]);
+    assert!(o.status.success());
+    let out = stdout(&o);
+    for sub in ["table", "replay", "bench", "st4"] {
+        assert!(out.contains(&format!("  {sub} ")), "{out}");
+    }
+}
+
+#[test]
+fn a_repeated_option_takes_its_last_value() {
+    let o = guide_sim(&[
+        "table",
+        "--cases",
+        "/nonexistent/first.csv",
+        "--cases",
+        "/nonexistent/second.csv",
+        "--csv",
+        "--csv",
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("/nonexistent/second.csv: cannot read"),
+        "{}",
+        stderr(&o)
+    );
 }

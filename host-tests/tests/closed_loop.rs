@@ -2,8 +2,8 @@
 
 use host_tests::cases::{self, Case};
 use host_tests::closed_loop::{mean_noisy_rms, open_loop_rms, run, Noise};
-use host_tests::controller::Hysteresis;
 use host_tests::data;
+use host_tests::guide_algorithm::Hysteresis;
 
 fn cases() -> Vec<Case> {
     cases::load(&data::cases_file()).unwrap_or_else(|e| panic!("{e}"))

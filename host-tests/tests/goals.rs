@@ -7,8 +7,8 @@
 //!   on each of the PHD2 logs 01-05.
 
 use host_tests::cases;
-use host_tests::controller::Hysteresis;
 use host_tests::data::{cases_file, phd2_logs};
+use host_tests::guide_algorithm::Hysteresis;
 use host_tests::models::{self, Model};
 use host_tests::phd2_log;
 use host_tests::replay;
@@ -32,7 +32,7 @@ const INDIGO_GAIN_PCT: [f64; 5] = [0.27, 0.10, 12.26, 8.31, 2.22];
 #[test]
 fn table_meets_the_paper() {
     let cases = cases::load(&cases_file()).unwrap_or_else(|e| panic!("{e}"));
-    let rows = table::compute(&cases, 2);
+    let rows = table::compute(&cases);
     let mut failures = Vec::new();
     for r in &rows {
         let (_, free, noisy) = *PAPER_MKGP
@@ -73,7 +73,7 @@ fn replay_gains_at_least_indigo() {
         let hyst = replay::run(&log, &mut Hysteresis::phd2_baseline()).unwrap();
         let mkgp = replay::run(
             &log,
-            &mut *models::controller(Model::Mkgp, Some(0.7), Some(0.5)),
+            &mut *models::algorithm(Model::Mkgp, Some(0.7), Some(0.5)),
         )
         .unwrap();
         let gain = replay::gain_pct(mkgp.rms, hyst.rms);

@@ -5,8 +5,8 @@
 mod common;
 
 use common::TraceRow;
-use host_tests::controller::{Controller, Hysteresis};
 use host_tests::data;
+use host_tests::guide_algorithm::{GuideAlgorithm, Hysteresis};
 use host_tests::phd2_log::{self, GuideLog};
 use host_tests::replay;
 
@@ -54,7 +54,7 @@ struct Scripted<'a> {
     exposure: f64,
 }
 
-impl Controller for Scripted<'_> {
+impl GuideAlgorithm for Scripted<'_> {
     fn step(&mut self, t: f64, measured: f64, snr: f64, dt: f64) -> f64 {
         let row = self.trace[self.k];
         assert_eq!(

@@ -35,7 +35,7 @@ fn assert_rates_sane(rig: &Rig) {
 #[test]
 fn goals() {
     let cases = cases::load(&cases_file()).unwrap_or_else(|e| panic!("{e}"));
-    let rows = st4_sim::table(&cases, &[0.0, 1.0], 2);
+    let rows = st4_sim::table(&cases, &[0.0, 1.0]);
     let mut failures = Vec::new();
     for r in &rows {
         let ratio = r.fw_mkgp / r.guider_only;

@@ -1,4 +1,5 @@
-//! guide-sim: the paper's synthetic table and PHD2-log replays.
+//! guide-sim: the paper's synthetic table, PHD2-log replays, the cost of a
+//! guide frame and the firmware's ST4 closed loop.
 //!
 //! ```text
 //! guide-sim table [--cases FILE] [--csv]
@@ -6,80 +7,140 @@
 //! guide-sim bench [--csv] [--host-only]
 //! guide-sim st4 [--case ID] [--cases FILE] [--noise PX] [--csv]
 //! ```
-//! Arguments are parsed by hand: two subcommands with one flag and one
-//! option each do not justify a dependency.
+//! `guide-sim <subcommand> --help` describes each; the arguments are
+//! parsed by clap (usage errors exit with 2).
 
+use clap::{Args, Parser, Subcommand};
 use host_tests::bench::{self, BenchRow, TargetRun};
 use host_tests::cases;
-use host_tests::controller::{Controller, Hysteresis};
 use host_tests::data::{self, Error};
+use host_tests::guide_algorithm::{GuideAlgorithm, Hysteresis};
 use host_tests::models::{self, Model};
 use host_tests::phd2_log::{self, GuideLog};
 use host_tests::replay::{self, ReplayResult};
 use host_tests::st4_sim;
 use host_tests::{svg, table};
+use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Mutex;
 
-const USAGE: &str = "\
-usage: guide-sim table [--cases FILE] [--csv]
-       guide-sim replay [LOG...] [--csv]
-       guide-sim bench [--csv] [--host-only]
-       guide-sim st4 [--case ID] [--cases FILE] [--noise PX] [--csv]
+/// The paper's synthetic table, PHD2-log replays, the cost of a guide frame
+/// and the firmware's ST4 closed loop.
+#[derive(Parser)]
+#[command(
+    name = "guide-sim",
+    // As before clap: a repeated option takes its last value.
+    args_override_self = true,
+    after_help = "The data (cases, PHD2 logs) is read from host-tests/data in the repository."
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
 
-table   residual RMS (px, t >= 3600 s) of the synthetic cases for the open loop,
-        reactive (hysteresis 0.6), ppec (GP, 1 stage) and mkgp (GP, 2 stages),
-        noise-free and with 1 px noise (mean of seeds 1-3). Without --csv also
-        writes the bar chart guide-sim-table.svg in the current directory.
-replay  PHD2's causal replay of guide logs (default: all logs in
-        host-tests/data/phd2-logs): hysteresis 0.7 baseline vs ppec and mkgp (control gain 0.7,
-        prediction gain 0.5, dt = the log's exposure).
-bench   cost of one guide frame of the GP guider in the closed loop on case C8
-        with 1 px noise (seed 1), over the frames t >= 1200 s: host time per
-        frame (median, p90) in f64 and f32 for 1 and 2 stages, and for f32 the
-        instructions per frame on an emulated Cortex-M4 (median, max; QEMU runs
-        target-tests' bench binary, about a minute) and the bytes of model
-        state. --host-only skips QEMU. Takes no files but the cases file.
-st4     the firmware's closed loop: a virtual mount whose RA error is a synthetic
-        case, a camera exposing every 2 s, a PHD2-like hysteresis guider (0.7, 0.1,
-        min move 0.2) sending ST4 pulses at 0.5x sidereal through the firmware's
-        St4 and Guiding; guider only, guider + firmware PPEC (Learner<1>) and
-        guider + firmware MKGP (Learner<2>). Pointing RMS (arcsec = px) over
-        t >= 3600 s of 3 h runs; noise 0 and 1 px (seeds 1-3, mean) unless
-        --noise PX picks one level; --case ID runs one case.
+#[derive(Subcommand)]
+enum Command {
+    /// Residual RMS of the synthetic cases: open loop, reactive, ppec, mkgp
+    ///
+    /// Residual RMS (px, t >= 3600 s) of the synthetic cases for the open loop,
+    /// reactive (hysteresis 0.6), ppec (GP, 1 stage) and mkgp (GP, 2 stages),
+    /// noise-free and with 1 px noise (mean of seeds 1-3). Without --csv also
+    /// writes the bar chart guide-sim-table.svg in the current directory.
+    #[command(verbatim_doc_comment)]
+    Table(TableArgs),
+    /// PHD2's causal replay of guide logs: hysteresis vs ppec and mkgp
+    ///
+    /// PHD2's causal replay of guide logs (default: all logs in
+    /// host-tests/data/phd2-logs): hysteresis 0.7 baseline vs ppec and mkgp
+    /// (control gain 0.7, prediction gain 0.5, dt = the log's exposure).
+    #[command(verbatim_doc_comment)]
+    Replay(ReplayArgs),
+    /// Cost of one guide frame of the GP guider: host time, Cortex-M4 instructions
+    ///
+    /// Cost of one guide frame of the GP guider in the closed loop on case C8
+    /// with 1 px noise (seed 1), over the frames t >= 1200 s: host time per
+    /// frame (median, p90) in f64 and f32 for 1 and 2 stages, and for f32 the
+    /// instructions per frame on an emulated Cortex-M4 (median, max; QEMU runs
+    /// target-tests' bench binary, about a minute) and the bytes of model
+    /// state. Takes no files but the cases file.
+    #[command(verbatim_doc_comment)]
+    Bench(BenchArgs),
+    /// The firmware's closed loop: ST4 pulses through St4, Guiding and Learner
+    ///
+    /// The firmware's closed loop: a virtual mount whose RA error is a synthetic
+    /// case, a camera exposing every 2 s, a PHD2-like hysteresis guider (0.7, 0.1,
+    /// min move 0.2) sending ST4 pulses at 0.5x sidereal through the firmware's
+    /// St4 and Guiding; guider only, guider + firmware PPEC (Learner<1>) and
+    /// guider + firmware MKGP (Learner<2>). Pointing RMS (arcsec = px) over
+    /// t >= 3600 s of 3 h runs; noise 0 and 1 px (seeds 1-3, mean) unless
+    /// --noise PX picks one level; --case ID runs one case.
+    #[command(verbatim_doc_comment)]
+    St4(St4Args),
+}
 
-The data (cases, PHD2 logs) is read from host-tests/data in the repository.";
+#[derive(Args)]
+struct TableArgs {
+    /// The synthetic cases [default: host-tests/data/synthetic_cases.csv]
+    #[arg(long, value_name = "FILE")]
+    cases: Option<PathBuf>,
+    /// Print the table as CSV (and write no bar chart)
+    #[arg(long)]
+    csv: bool,
+}
+
+#[derive(Args)]
+struct ReplayArgs {
+    /// PHD2 guide logs [default: all logs in host-tests/data/phd2-logs]
+    #[arg(value_name = "LOG")]
+    logs: Vec<PathBuf>,
+    /// Print the results as CSV
+    #[arg(long)]
+    csv: bool,
+}
+
+#[derive(Args)]
+struct BenchArgs {
+    /// Print the rows as CSV
+    #[arg(long)]
+    csv: bool,
+    /// Skip the Cortex-M4 bench in QEMU
+    #[arg(long)]
+    host_only: bool,
+}
+
+#[derive(Args)]
+struct St4Args {
+    /// Run only the case ID
+    #[arg(long, value_name = "ID")]
+    case: Option<String>,
+    /// The synthetic cases [default: host-tests/data/synthetic_cases.csv]
+    #[arg(long, value_name = "FILE")]
+    cases: Option<PathBuf>,
+    /// One noise level, px [default: 0 and 1]
+    #[arg(long, value_name = "PX", value_parser = noise_px, allow_negative_numbers = true)]
+    noise: Option<f64>,
+    /// Print the table as CSV
+    #[arg(long)]
+    csv: bool,
+}
+
+fn noise_px(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if x.is_finite() && x >= 0.0 => Ok(x),
+        _ => Err("needs a number of px >= 0".to_string()),
+    }
+}
 
 /// Control and prediction gains of the replay (PHD2's performance test).
 const REPLAY_CONTROL_GAIN: f64 = 0.7;
 const REPLAY_PREDICTION_GAIN: f64 = 0.5;
 
-fn usage_error(msg: &str) -> ExitCode {
-    eprintln!("guide-sim: {msg}\n\n{USAGE}");
-    ExitCode::from(2)
-}
-
-fn threads() -> usize {
-    std::thread::available_parallelism().map_or(2, |n| n.get())
-}
-
 fn main() -> ExitCode {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let Some((cmd, rest)) = args.split_first() else {
-        return usage_error("no subcommand");
-    };
-    match cmd.as_str() {
-        "table" => cmd_table(rest),
-        "replay" => cmd_replay(rest),
-        "bench" => cmd_bench(rest),
-        "st4" => cmd_st4(rest),
-        "-h" | "--help" | "help" => {
-            println!("{USAGE}");
-            ExitCode::SUCCESS
-        }
-        other => usage_error(&format!("unknown subcommand {other:?}")),
+    match Cli::parse().command {
+        Command::Table(args) => cmd_table(args),
+        Command::Replay(args) => cmd_replay(args),
+        Command::Bench(args) => cmd_bench(args),
+        Command::St4(args) => cmd_st4(args),
     }
 }
 
@@ -95,28 +156,11 @@ fn load_cases(path: Option<PathBuf>) -> Option<(PathBuf, Vec<cases::Case>)> {
     }
 }
 
-fn cmd_table(args: &[String]) -> ExitCode {
-    let mut csv = false;
-    let mut cases_path: Option<PathBuf> = None;
-    let mut it = args.iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--csv" => csv = true,
-            "--cases" => match it.next() {
-                Some(p) => cases_path = Some(PathBuf::from(p)),
-                None => return usage_error("--cases needs a FILE"),
-            },
-            "-h" | "--help" => {
-                println!("{USAGE}");
-                return ExitCode::SUCCESS;
-            }
-            other => return usage_error(&format!("table: unexpected argument {other:?}")),
-        }
-    }
-    let Some((_, cases)) = load_cases(cases_path) else {
+fn cmd_table(TableArgs { cases, csv }: TableArgs) -> ExitCode {
+    let Some((_, cases)) = load_cases(cases) else {
         return ExitCode::FAILURE;
     };
-    let rows = table::compute(&cases, threads());
+    let rows = table::compute(&cases);
     if csv {
         println!("case,noise_px,open_loop,reactive,ppec,mkgp");
         for r in &rows {
@@ -161,40 +205,34 @@ enum Kind {
     Model(Model),
 }
 
-fn replay_controller(kind: Kind) -> Box<dyn Controller + Send> {
+/// The replay's columns, in the order `cmd_replay` reads its results.
+const KINDS: [Kind; 3] = [
+    Kind::Model(Model::Mkgp),
+    Kind::Model(Model::Ppec),
+    Kind::Hysteresis,
+];
+
+fn replay_algorithm(kind: Kind) -> Box<dyn GuideAlgorithm> {
     match kind {
         Kind::Hysteresis => Box::new(Hysteresis::phd2_baseline()),
         Kind::Model(m) => {
-            models::controller(m, Some(REPLAY_CONTROL_GAIN), Some(REPLAY_PREDICTION_GAIN))
+            models::algorithm(m, Some(REPLAY_CONTROL_GAIN), Some(REPLAY_PREDICTION_GAIN))
         }
     }
 }
 
-fn cmd_replay(args: &[String]) -> ExitCode {
-    let mut csv = false;
-    let mut paths = Vec::new();
-    for a in args {
-        match a.as_str() {
-            "--csv" => csv = true,
-            "-h" | "--help" => {
-                println!("{USAGE}");
-                return ExitCode::SUCCESS;
-            }
-            s if s.starts_with("--") => {
-                return usage_error(&format!("replay: unknown option {s:?}"))
-            }
-            s => paths.push(PathBuf::from(s)),
-        }
-    }
-    if paths.is_empty() {
+fn cmd_replay(ReplayArgs { logs, csv }: ReplayArgs) -> ExitCode {
+    let paths = if logs.is_empty() {
         match data::phd2_logs() {
-            Ok(p) => paths = p,
+            Ok(p) => p,
             Err(e) => {
                 eprintln!("guide-sim: {e}");
                 return ExitCode::FAILURE;
             }
         }
-    }
+    } else {
+        logs
+    };
     // Parse every log first; a bad log is reported and the others still run.
     let mut failed = false;
     let logs: Vec<Option<GuideLog>> = paths
@@ -208,35 +246,19 @@ fn cmd_replay(args: &[String]) -> ExitCode {
             }
         })
         .collect();
-    let kinds = [
-        Kind::Model(Model::Mkgp),
-        Kind::Model(Model::Ppec),
-        Kind::Hysteresis,
-    ];
-    let jobs: Vec<(usize, usize)> = (0..kinds.len())
-        .flat_map(|k| {
-            logs.iter()
-                .enumerate()
-                .filter(|(_, l)| l.is_some())
-                .map(move |(i, _)| (i, k))
+    // One run per (log, kind), collected in the order of the logs and KINDS.
+    let results: Vec<Option<Vec<Result<ReplayResult, Error>>>> = logs
+        .par_iter()
+        .map(|log| {
+            let log = log.as_ref()?;
+            Some(
+                KINDS
+                    .par_iter()
+                    .map(|&k| replay::run(log, &mut replay_algorithm(k)))
+                    .collect(),
+            )
         })
         .collect();
-    let results: Mutex<Vec<Vec<Option<Result<ReplayResult, Error>>>>> =
-        Mutex::new(vec![vec![None, None, None]; logs.len()]);
-    let next = AtomicUsize::new(0);
-    std::thread::scope(|s| {
-        for _ in 0..threads() {
-            s.spawn(|| loop {
-                let Some(&(i, k)) = jobs.get(next.fetch_add(1, Ordering::Relaxed)) else {
-                    break;
-                };
-                let log = logs[i].as_ref().unwrap();
-                let r = replay::run(log, &mut replay_controller(kinds[k]));
-                results.lock().unwrap()[i][k] = Some(r);
-            });
-        }
-    });
-    let results = results.into_inner().unwrap();
     if csv {
         println!("log,frames,hysteresis_rms,ppec_rms,mkgp_rms,ppec_gain_pct,mkgp_gain_pct");
     } else {
@@ -252,8 +274,10 @@ fn cmd_replay(args: &[String]) -> ExitCode {
         );
     }
     for (log, res) in logs.iter().zip(results) {
-        let Some(log) = log else { continue };
-        let res: Result<Vec<ReplayResult>, Error> = res.into_iter().map(|r| r.unwrap()).collect();
+        let (Some(log), Some(res)) = (log, res) else {
+            continue;
+        };
+        let res: Result<Vec<ReplayResult>, Error> = res.into_iter().collect();
         let r = match res {
             Ok(r) => r,
             Err(e) => {
@@ -296,20 +320,7 @@ fn cmd_replay(args: &[String]) -> ExitCode {
     }
 }
 
-fn cmd_bench(args: &[String]) -> ExitCode {
-    let mut csv = false;
-    let mut host_only = false;
-    for a in args {
-        match a.as_str() {
-            "--csv" => csv = true,
-            "--host-only" => host_only = true,
-            "-h" | "--help" => {
-                println!("{USAGE}");
-                return ExitCode::SUCCESS;
-            }
-            other => return usage_error(&format!("bench: unexpected argument {other:?}")),
-        }
-    }
+fn cmd_bench(BenchArgs { csv, host_only }: BenchArgs) -> ExitCode {
     let path = data::cases_file();
     let case = match cases::load(&path) {
         Ok(c) => c.into_iter().find(|c| c.name == bench::CASE),
@@ -426,38 +437,18 @@ fn print_bench(rows: &[BenchRow]) {
     }
 }
 
-fn cmd_st4(args: &[String]) -> ExitCode {
-    let mut csv = false;
-    let mut cases_path: Option<PathBuf> = None;
-    let mut case_id: Option<String> = None;
-    let mut noise: Option<f64> = None;
-    let mut it = args.iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--csv" => csv = true,
-            "--cases" => match it.next() {
-                Some(p) => cases_path = Some(PathBuf::from(p)),
-                None => return usage_error("--cases needs a FILE"),
-            },
-            "--case" => match it.next() {
-                Some(c) => case_id = Some(c.clone()),
-                None => return usage_error("--case needs an ID"),
-            },
-            "--noise" => match it.next().map(|s| s.parse::<f64>()) {
-                Some(Ok(x)) if x.is_finite() && x >= 0.0 => noise = Some(x),
-                _ => return usage_error("--noise needs a number of px >= 0"),
-            },
-            "-h" | "--help" => {
-                println!("{USAGE}");
-                return ExitCode::SUCCESS;
-            }
-            other => return usage_error(&format!("st4: unexpected argument {other:?}")),
-        }
-    }
-    let Some((path, mut cases)) = load_cases(cases_path) else {
+fn cmd_st4(
+    St4Args {
+        case,
+        cases,
+        noise,
+        csv,
+    }: St4Args,
+) -> ExitCode {
+    let Some((path, mut cases)) = load_cases(cases) else {
         return ExitCode::FAILURE;
     };
-    if let Some(id) = case_id {
+    if let Some(id) = case {
         cases.retain(|c| c.name == id);
         if cases.is_empty() {
             eprintln!("guide-sim: {}: no case {id}", path.display());
@@ -468,7 +459,7 @@ fn cmd_st4(args: &[String]) -> ExitCode {
         Some(x) => vec![x],
         None => vec![0.0, 1.0],
     };
-    let rows = st4_sim::table(&cases, &levels, threads());
+    let rows = st4_sim::table(&cases, &levels);
     if csv {
         println!("{}", st4_sim::CSV_HEADER);
         for r in &rows {

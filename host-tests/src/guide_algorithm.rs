@@ -1,7 +1,7 @@
 //! What the simulators drive: one control per guide frame.
 
 /// A guide algorithm for one axis.
-pub trait Controller {
+pub trait GuideAlgorithm {
     /// One frame: `measured` is the error the guider sees (px), `snr` the
     /// star's signal-to-noise ratio, `t` the frame time and `dt` the time
     /// step (s). Returns the control: same units and sign as `measured`, the
@@ -12,7 +12,7 @@ pub trait Controller {
     fn dither(&mut self, _amount: f64) {}
 }
 
-impl<C: Controller + ?Sized> Controller for Box<C> {
+impl<C: GuideAlgorithm + ?Sized> GuideAlgorithm for Box<C> {
     fn step(&mut self, t: f64, measured: f64, snr: f64, dt: f64) -> f64 {
         (**self).step(t, measured, snr, dt)
     }
@@ -54,7 +54,7 @@ impl Hysteresis {
     }
 }
 
-impl Controller for Hysteresis {
+impl GuideAlgorithm for Hysteresis {
     fn step(&mut self, _t: f64, measured: f64, _snr: f64, _dt: f64) -> f64 {
         let control = if measured.abs() < self.min_move {
             0.0
@@ -71,7 +71,7 @@ impl Controller for Hysteresis {
 #[derive(Debug, Clone, Copy, Default)]
 pub struct OpenLoop;
 
-impl Controller for OpenLoop {
+impl GuideAlgorithm for OpenLoop {
     fn step(&mut self, _t: f64, _measured: f64, _snr: f64, _dt: f64) -> f64 {
         0.0
     }
