@@ -38,6 +38,68 @@ pub fn reference_trace(name: &str) -> PathBuf {
         .join(format!("indigo_ppec_{name}.csv"))
 }
 
+/// The header line of an INDIGO reference trace.
+pub const TRACE_HEADER: &str =
+    "time_s,input_px,snr,output_correction_px,period_s,learning_progress";
+
+/// One frame of an INDIGO reference trace: what INDIGO's single-kernel
+/// guider was given (time, input, SNR) and what it answered.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TraceRow {
+    pub time_s: f64,
+    pub input_px: f64,
+    pub snr: f64,
+    /// The correction, i.e. minus the control.
+    pub output_correction_px: f64,
+    pub period_s: f64,
+    pub learning_progress: f64,
+}
+
+/// Loads a reference trace (see [`reference_trace`] and the data README):
+/// the [`TRACE_HEADER`] line, then one frame per line with six finite
+/// numbers. Errors name the file and line.
+pub fn load_trace(path: &Path) -> Result<Vec<TraceRow>, Error> {
+    let text = read_text(path)?;
+    let err = |line: usize, msg: String| Error::new(path, Some(line), msg);
+    let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l));
+    match lines.next() {
+        Some((_, header)) if header.trim() == TRACE_HEADER => {}
+        Some((n, header)) => {
+            return Err(err(
+                n,
+                format!("expected the header {TRACE_HEADER:?}, found {header:?}"),
+            ))
+        }
+        None => return Err(Error::new(path, None, "empty file")),
+    }
+    let mut rows = Vec::new();
+    for (n, line) in lines {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let f: Vec<&str> = line.split(',').collect();
+        if f.len() != 6 {
+            return Err(err(n, format!("expected 6 columns, found {}", f.len())));
+        }
+        let num = |i: usize| {
+            let column = TRACE_HEADER.split(',').nth(i).unwrap_or("?");
+            parse_f64(f[i], column).map_err(|m| err(n, m))
+        };
+        rows.push(TraceRow {
+            time_s: num(0)?,
+            input_px: num(1)?,
+            snr: num(2)?,
+            output_correction_px: num(3)?,
+            period_s: num(4)?,
+            learning_progress: num(5)?,
+        });
+    }
+    if rows.is_empty() {
+        return Err(Error::new(path, None, "no frames"));
+    }
+    Ok(rows)
+}
+
 /// Read a whole text file; a missing file is reported with its path.
 pub fn read_text(path: &Path) -> Result<String, Error> {
     std::fs::read_to_string(path).map_err(|e| Error::io(path, &e))
@@ -85,5 +147,51 @@ pub(crate) fn parse_f64(field: &str, column: &str) -> Result<f64, String> {
     match field.parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(v),
         _ => Err(format!("{column}: not a finite number: {field:?}")),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Writes `text` to a file of its own in the temporary directory.
+    fn temp_file(name: &str, text: &str) -> PathBuf {
+        let path =
+            std::env::temp_dir().join(format!("host-tests-data-{}-{name}.csv", std::process::id()));
+        std::fs::write(&path, text).unwrap();
+        path
+    }
+
+    #[test]
+    fn trace_errors_name_file_and_line() {
+        let cases = [
+            ("header", "t,x\n0,1,10,0,300,0\n", 1, "expected the header"),
+            (
+                "columns",
+                &format!("{TRACE_HEADER}\n0,1,10,0,300,0\n2,1,10,0,300\n"),
+                3,
+                "expected 6 columns",
+            ),
+            (
+                "number",
+                &format!("{TRACE_HEADER}\n0,1,10,0,300,0\n2,x,10,0,300,0\n"),
+                3,
+                "input_px: not a finite number",
+            ),
+        ];
+        for (name, text, line, message) in cases {
+            let path = temp_file(name, text);
+            let e = load_trace(&path).unwrap_err();
+            std::fs::remove_file(&path).unwrap();
+            assert_eq!(e.line, Some(line), "{name}: {e}");
+            assert!(e.message.contains(message), "{name}: {e}");
+            assert!(e
+                .to_string()
+                .starts_with(&format!("{}:{line}: ", path.display())));
+        }
+        let path = temp_file("empty", &format!("{TRACE_HEADER}\n"));
+        let e = load_trace(&path).unwrap_err();
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!((e.line, e.message.as_str()), (None, "no frames"));
     }
 }

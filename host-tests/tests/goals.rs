@@ -1,8 +1,11 @@
 //! The targets for the model, as the simulators measure them:
-//! - `guide-sim table`: every MKGP cell at most the paper's MKGP figure
-//!   + 2 % (on C4 noise-free, where INDIGO's own PPEC gives 0.194 with these
-//!   case definitions against the paper's 0.180, at most PPEC + 2 %), and on
-//!   C1 and C4 MKGP within 0.005 px of PPEC;
+//! - `guide-sim table`: every MKGP cell at most 1.02 x the paper's MKGP
+//!   figure (on C4 noise-free, where INDIGO's own single-kernel code gives
+//!   0.194 with these case definitions against the paper's 0.181, at most
+//!   1.02 x INDIGO's figure), and on C1 and C4 MKGP within 0.005 px of PPEC;
+//! - `guide-sim table`: every PPEC cell within [`PPEC_TOLERANCE_PX`] of
+//!   INDIGO's single-kernel figure (docs/reference.md), except those of
+//!   [`PPEC_EXCEPTIONS`];
 //! - `guide-sim replay`: the MKGP gain over hysteresis at least INDIGO's
 //!   on each of the PHD2 logs 01-05.
 
@@ -26,6 +29,29 @@ const PAPER_MKGP: [(&str, f64, f64); 8] = [
     ("C8", 0.438, 0.790),
 ];
 
+/// INDIGO's single-kernel residual RMS (noise-free, 1 px) on our case
+/// definitions: docs/reference.md, "Reference figures".
+const INDIGO_SINGLE_KERNEL: [(&str, f64, f64); 8] = [
+    ("C1", 0.177, 0.666),
+    ("C2", 0.225, 0.687),
+    ("C3", 0.272, 0.705),
+    ("C4", 0.194, 0.669),
+    ("C5", 0.528, 0.840),
+    ("C6", 0.810, 1.041),
+    ("C7", 0.928, 1.139),
+    ("C8", 1.160, 1.328),
+];
+
+/// Our PPEC (the model with one stage) is INDIGO's single-kernel model, but
+/// the closed loops differ in detail (see docs/model.md) and the reference
+/// figures are rounded to 0.001 px. The README's claim: within this bound.
+const PPEC_TOLERANCE_PX: f64 = 0.002;
+
+/// Cells where the claim does not hold, each with its own bound just above
+/// the difference measured, so that it cannot grow unnoticed:
+/// (case, noise px, bound px).
+const PPEC_EXCEPTIONS: [(&str, f64, f64); 1] = [("C8", 1.0, 0.0022)];
+
 /// INDIGO's PPEC gain over hysteresis on logs 01-05, percent.
 const INDIGO_GAIN_PCT: [f64; 5] = [0.27, 0.10, 12.26, 8.31, 2.22];
 
@@ -39,14 +65,43 @@ fn table_meets_the_paper() {
             .iter()
             .find(|(c, _, _)| *c == r.case)
             .unwrap_or_else(|| panic!("unexpected case {}", r.case));
-        let mut bar = 1.02 * if r.noise_px == 0.0 { free } else { noisy };
-        if r.case == "C4" && r.noise_px == 0.0 {
-            bar = bar.max(1.02 * r.ppec);
-        }
+        let (_, indigo_free, indigo_noisy) = *INDIGO_SINGLE_KERNEL
+            .iter()
+            .find(|(c, _, _)| *c == r.case)
+            .unwrap_or_else(|| panic!("unexpected case {}", r.case));
+        let noise_free = r.noise_px == 0.0;
+        let indigo = if noise_free {
+            indigo_free
+        } else {
+            indigo_noisy
+        };
+        // C4 noise-free: the paper's 0.181 is below what INDIGO's own code
+        // gives on these case definitions, so the bar is INDIGO's figure.
+        let reference = match (r.case.as_str(), noise_free) {
+            ("C4", true) => indigo,
+            (_, true) => free,
+            (_, false) => noisy,
+        };
+        let bar = 1.02 * reference;
         println!(
-            "{} noise {}: mkgp {:.4} (bar {:.4}), ppec {:.4}",
-            r.case, r.noise_px, r.mkgp, bar, r.ppec
+            "{} noise {}: mkgp {:.4} (bar {:.4}), ppec {:.4} (INDIGO {indigo}, diff {:+.5})",
+            r.case,
+            r.noise_px,
+            r.mkgp,
+            bar,
+            r.ppec,
+            r.ppec - indigo
         );
+        let ppec_bound = PPEC_EXCEPTIONS
+            .iter()
+            .find(|(c, noise, _)| *c == r.case && *noise == r.noise_px)
+            .map_or(PPEC_TOLERANCE_PX, |&(_, _, bound)| bound);
+        if (r.ppec - indigo).abs() > ppec_bound {
+            failures.push(format!(
+                "{} noise {}: PPEC {:.4} vs INDIGO {indigo}",
+                r.case, r.noise_px, r.ppec
+            ));
+        }
         if r.mkgp > bar {
             failures.push(format!(
                 "{} noise {}: {:.4} > {:.4}",

@@ -21,8 +21,13 @@
 //! ```
 //! median and p90 are nearest-rank percentiles, `state_bytes` is
 //! `size_of::<Guider<f32, N>>()`, `rms_px` the residual RMS over the same
-//! frames (a sanity check that the model guides). Nothing is asserted about
-//! speed; the run exits 0 unless it panics or faults.
+//! frames (a sanity check that the model guides).
+//!
+//! The goals are asserted: the run exits 1, after the result lines, with a
+//! `FAILED:` line when the median for `Guider<f32, 2>` exceeds
+//! [`BUDGET_N2_MEDIAN`] instructions (the counts are exact and repeat, so
+//! there is no margin to leave) or its state [`BUDGET_N2_STATE_BYTES`]. It
+//! also exits 1 if it panics or faults.
 #![no_std]
 #![no_main]
 
@@ -46,6 +51,11 @@ const FRAMES: usize = 2400;
 const ACTIVE_FROM_S: f64 = 1200.0;
 const ACTIVE_FROM_FRAME: usize = (ACTIVE_FROM_S / DT) as usize;
 const ACTIVE: usize = FRAMES - ACTIVE_FROM_FRAME;
+/// The microcontroller budget for the two-stage guider (docs/reference.md):
+/// median instructions per active frame.
+const BUDGET_N2_MEDIAN: u32 = 1_000_000;
+/// ... and bytes of model state (`size_of::<Guider<f32, 2>>()`).
+const BUDGET_N2_STATE_BYTES: usize = 64 * 1024;
 /// The SNR the guider is given (as in host-tests' closed loop).
 const SNR: f32 = 10.0;
 /// Noise: N(0, 1 px) from this seed.
@@ -113,8 +123,9 @@ static GUIDER_2: Slot<Guider<f32, 2>> = Slot::new();
 static COUNTS: Slot<[u32; ACTIVE]> = Slot::new();
 
 /// Runs the closed loop with `guider`, writes the instructions of each
-/// active frame to `counts` (sorted on return) and prints the result line.
-fn run<const N: usize>(guider: &mut Guider<f32, N>, counts: &mut [u32; ACTIVE]) {
+/// active frame to `counts` (sorted on return), prints the result line and
+/// returns the median.
+fn run<const N: usize>(guider: &mut Guider<f32, N>, counts: &mut [u32; ACTIVE]) -> u32 {
     let mut gauss = Gaussian::new(SEED);
     let mut applied = 0.0f64; // U: the sum of the controls applied
     let mut sum_sq = 0.0f64;
@@ -147,6 +158,7 @@ fn run<const N: usize>(guider: &mut Guider<f32, N>, counts: &mut [u32; ACTIVE]) 
         core::mem::size_of::<Guider<f32, N>>(),
         libm::sqrt(sum_sq / ACTIVE as f64)
     );
+    rank(50)
 }
 
 #[entry]
@@ -159,8 +171,26 @@ fn main() -> ! {
     );
     let counts = COUNTS.init([0; ACTIVE]);
     run(GUIDER_1.init(Guider::new(GuiderConfig::default())), counts);
-    run(GUIDER_2.init(Guider::new(GuiderConfig::default())), counts);
-    exit(true)
+    let median_n2 = run(GUIDER_2.init(Guider::new(GuiderConfig::default())), counts);
+    let state_n2 = core::mem::size_of::<Guider<f32, 2>>();
+    let mut ok = true;
+    if median_n2 > BUDGET_N2_MEDIAN {
+        hprintln!(
+            "FAILED: Guider<f32, 2> takes a median of {} instructions per frame, over the budget of {}",
+            median_n2,
+            BUDGET_N2_MEDIAN
+        );
+        ok = false;
+    }
+    if state_n2 > BUDGET_N2_STATE_BYTES {
+        hprintln!(
+            "FAILED: Guider<f32, 2> state is {} bytes, over the budget of {}",
+            state_n2,
+            BUDGET_N2_STATE_BYTES
+        );
+        ok = false;
+    }
+    exit(ok)
 }
 
 #[panic_handler]

@@ -100,8 +100,8 @@ fn main() -> ! {
     l.set_dim(100);
     for i in 0..100 {
         let row = l.row_mut(i);
-        for j in 0..=i {
-            row[j] = k1.full((i as f32 - j as f32) * 17.0 * 5.0);
+        for (j, v) in row.iter_mut().enumerate() {
+            *v = k1.full((i as f32 - j as f32) * 17.0 * 5.0);
         }
         row[i] += 0.7;
     }
