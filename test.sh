@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The project's single test command, for newcomers and CI:   ./test.sh
 #
-#   0. toolchain: rustup target thumbv7em-none-eabihf, llvm-tools, rustfmt;
-#      qemu-system-arm (installed with apt-get when run as root).
+#   0. toolchain: rustup target thumbv7em-none-eabihf, llvm-tools, rustfmt,
+#      clippy; flip-link (cargo install); qemu-system-arm (installed with
+#      apt-get when run as root).
 #   1. lint:         cargo fmt --check, cargo clippy -D warnings and cargo doc
 #                    (rustdoc warnings are errors) in every crate.
 #   2. unit tests:   the library's own tests, on the host
@@ -10,8 +11,9 @@
 #                    --target <host>)
 #      host tests:   cd host-tests && cargo test --release
 #   3. target tests: cd target-tests && cargo run --release   (QEMU, Cortex-M4F)
-#                    and the fault path (--bin safe_state): a panic and a
-#                    HardFault in the model's task end in the safe state.
+#                    and the fault path (--bin safe_state): a panic, a
+#                    HardFault and a stack overflow in the model's task end
+#                    in the safe state.
 #   4. firmware:     cargo build --release for each chip, with flash/RAM use;
 #                    fails if the STM32F411CE build exceeds 128 KiB of flash
 #                    or 96 KiB of static RAM (the rest of its 128 KiB is left
@@ -50,6 +52,10 @@ for c in llvm-tools rustfmt clippy; do
         rustup component add "$c"
     fi
 done
+# flip-link: the firmware's (and target-tests') linker, stack below statics.
+if ! command -v flip-link >/dev/null; then
+    cargo install flip-link --locked
+fi
 if ! command -v qemu-system-arm >/dev/null; then
     if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
         export DEBIAN_FRONTEND=noninteractive
@@ -66,6 +72,7 @@ LLVM_OBJDUMP="$LLVM_BIN/llvm-objdump"
 [ -x "$LLVM_SIZE" ] && [ -x "$LLVM_OBJDUMP" ] ||
     die "llvm-size or llvm-objdump not found in $LLVM_BIN (rustup component add llvm-tools)"
 echo "rustc: $(rustc --version)"
+echo "flip-link: $(flip-link --version 2>/dev/null || echo installed)"
 echo "qemu:  $(qemu-system-arm --version | head -n1)"
 
 HAVE_HOST_TESTS=0
@@ -123,9 +130,10 @@ selfcheck selfcheck-hardfault "1 passed, 1 failed"
 step "target tests (target-tests: cargo run --release in qemu-system-arm mps2-an386)"
 (cd target-tests && cargo run --release </dev/null)
 
-step "fault path (target-tests: --bin safe_state, a panic and a HardFault in the model's task)"
-(cd target-tests && cargo run --release --bin safe_state </dev/null)
-(cd target-tests && cargo run --release --bin safe_state --features safe-state-hardfault </dev/null)
+step "fault path (target-tests: --bin safe_state, a panic, a HardFault and a stack overflow in the model's task)"
+for fault in "" safe-state-hardfault safe-state-stack-overflow; do
+    (cd target-tests && cargo run --release --bin safe_state ${fault:+--features "$fault"} </dev/null)
+done
 
 # --- 4. firmware builds, sizes and panic sites ----------------------------------
 

@@ -62,11 +62,15 @@ const EXECUTOR_HIGH_PRIORITY: Priority = Priority::P2;
 const TIME_DRIVER_PRIORITY: Priority = Priority::P1;
 /// Timeout of the independent watchdog, µs: ten liveness checks.
 const WATCHDOG_TIMEOUT_US: u32 = 1_000_000;
+/// Where RAM starts (memory.x); flip-link puts the bottom of the stack here.
+const RAM_ORIGIN: u32 = 0x2000_0000;
 /// Periodic stages of the gear-error model: the worm and one more (MKGP).
 pub(crate) const STAGES: usize = 2;
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
+    // SAFETY: first thing; nothing lies in the megabyte below RAM.
+    unsafe { mkgp_mount::safety::fault_entry::install_stack_guard(RAM_ORIGIN) };
     let p = hal::clocks::init();
     let last_reset = fault::take_last_reset();
     interrupt::TIM5.set_priority(TIME_DRIVER_PRIORITY);

@@ -8,8 +8,7 @@ use core::mem::MaybeUninit;
 use core::panic::PanicInfo;
 use core::sync::atomic::AtomicBool;
 
-use cortex_m_rt::{exception, ExceptionFrame};
-
+use mkgp_mount::safety::fault_entry::hard_fault_record;
 use mkgp_mount::safety::fault_record::{Fault, FaultRecord, RECORD_WORDS};
 use mkgp_mount::safety::reset_cause::{ResetCause, ResetFlags};
 use mkgp_mount::safety::safe_state::{self, SafeStatePort};
@@ -69,9 +68,12 @@ fn panic(info: &PanicInfo) -> ! {
     enter_safe_state(&FaultRecord::from_panic(info))
 }
 
-#[exception]
-unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
-    enter_safe_state(&FaultRecord::hard_fault(frame.pc(), frame.lr()))
+mkgp_mount::hard_fault_entry!(on_hard_fault);
+
+/// The HardFault handler, on a fresh stack (see `hard_fault_entry!`).
+unsafe extern "C" fn on_hard_fault(frame: *const u32) -> ! {
+    // SAFETY: entered from `hard_fault_entry!` with its frame.
+    enter_safe_state(&unsafe { hard_fault_record(frame) })
 }
 
 /// At boot, before anything can fault: reads and clears the reset flags and
@@ -129,6 +131,9 @@ fn log_fault(what: &str, record: &FaultRecord) {
         }
         Fault::Stalled(part) => {
             defmt::error!("{}: {} stalled; drivers disabled", what, part.name())
+        }
+        Fault::StackOverflow => {
+            defmt::error!("{}: stack overflow; drivers disabled", what)
         }
     }
 }

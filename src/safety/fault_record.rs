@@ -44,6 +44,9 @@ pub enum Fault {
     HardFault { pc: u32, lr: u32 },
     /// The liveness check found `Part` stalled.
     Stalled(Part),
+    /// A HardFault whose exception frame could not be stacked: the stack
+    /// ran out (its guard below it faulted).
+    StackOverflow,
 }
 
 impl Fault {
@@ -53,6 +56,7 @@ impl Fault {
             Fault::HardFault { pc, lr } => (2, pc, lr),
             Fault::Stalled(Part::StepTick) => (3, 0, 0),
             Fault::Stalled(Part::Learner) => (4, 0, 0),
+            Fault::StackOverflow => (5, 0, 0),
         }
     }
 
@@ -62,6 +66,7 @@ impl Fault {
             2 => Fault::HardFault { pc: a, lr: b },
             3 => Fault::Stalled(Part::StepTick),
             4 => Fault::Stalled(Part::Learner),
+            5 => Fault::StackOverflow,
             _ => return None,
         })
     }
@@ -106,6 +111,10 @@ impl FaultRecord {
 
     pub fn stalled(part: Part) -> Self {
         Self::without_file(Fault::Stalled(part))
+    }
+
+    pub fn stack_overflow() -> Self {
+        Self::without_file(Fault::StackOverflow)
     }
 
     fn without_file(fault: Fault) -> Self {
@@ -188,6 +197,7 @@ mod tests {
             FaultRecord::hard_fault(0x0800_1234, 0x0800_5679),
             FaultRecord::stalled(Part::StepTick),
             FaultRecord::stalled(Part::Learner),
+            FaultRecord::stack_overflow(),
         ];
         for r in records {
             assert_eq!(FaultRecord::decode(&r.encode()), Some(r));

@@ -5,13 +5,15 @@
 //! (`Guider<f32, 2>` on a two-stage gear error) in the "model task", which
 //! panics after [`FRAMES_BEFORE_FAULT`] frames; with `--features
 //! safe-state-hardfault` it executes an undefined instruction instead (a
-//! HardFault). The handler builds the fault record and calls
+//! HardFault), and with `--features safe-state-stack-overflow` it recurses
+//! until the stack runs into flip-link's guard (a HardFault that cannot
+//! stack its frame). The handler builds the fault record and calls
 //! [`safe_state::enter`] with a port that reports through semihosting, as
 //! the board's handlers call it with theirs (`src/firmware/fault.rs`). The
 //! port checks that the drivers were disabled first, that the kept record
 //! decodes to the fault raised, and that the reset came last; the run
 //! prints `1 passed, 0 failed` and exits 0 only then. `../test.sh` runs
-//! both.
+//! all three.
 #![no_std]
 #![no_main]
 
@@ -21,9 +23,10 @@ mod support;
 use core::f64::consts::PI;
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
-use cortex_m_rt::{entry, exception, ExceptionFrame};
+use cortex_m_rt::{entry, exception};
 use cortex_m_semihosting::hprintln;
 use mkgp_mount::model::guider::{Guider, GuiderConfig};
+use mkgp_mount::safety::fault_entry::{hard_fault_record, install_stack_guard};
 use mkgp_mount::safety::fault_record::{Fault, FaultRecord, RECORD_WORDS};
 use mkgp_mount::safety::safe_state::{self, SafeStatePort};
 use support::{exit, Slot};
@@ -35,10 +38,16 @@ static GUIDER: Slot<Guider<f32, 2>> = Slot::new();
 /// The source line of the raised panic, for the check.
 static PANIC_LINE: AtomicU32 = AtomicU32::new(0);
 static IN_FAULT: AtomicBool = AtomicBool::new(false);
+/// A static the stack must never reach: checked after the overflow.
+static SENTINEL: AtomicU32 = AtomicU32::new(SENTINEL_VALUE);
+const SENTINEL_VALUE: u32 = 0x5AFE_5AFE;
 
 /// The "model task": frames every 2 s, then the fault.
 #[entry]
 fn main() -> ! {
+    // SAFETY: first thing, and nothing lies in the megabyte below RAM
+    // (memory.x: RAM at 0x2000_0000).
+    unsafe { install_stack_guard(0x2000_0000) };
     let guider = GUIDER.init(Guider::new(GuiderConfig::default()));
     let mut applied = 0.0f64;
     for k in 0..FRAMES_BEFORE_FAULT {
@@ -54,7 +63,10 @@ fn main() -> ! {
     raise()
 }
 
-#[cfg(not(feature = "safe-state-hardfault"))]
+#[cfg(not(any(
+    feature = "safe-state-hardfault",
+    feature = "safe-state-stack-overflow"
+)))]
 fn raise() -> ! {
     PANIC_LINE.store(line!() + 1, Ordering::SeqCst);
     panic!("raised by the test")
@@ -63,6 +75,20 @@ fn raise() -> ! {
 #[cfg(feature = "safe-state-hardfault")]
 fn raise() -> ! {
     cortex_m::asm::udf()
+}
+
+#[cfg(feature = "safe-state-stack-overflow")]
+fn raise() -> ! {
+    /// Recurses until the stack runs out: a frame of 256 bytes each time,
+    /// kept alive by `black_box` so that it is neither inlined nor a loop.
+    #[inline(never)]
+    #[allow(unconditional_recursion)]
+    fn deeper(depth: u32) -> u32 {
+        let frame = core::hint::black_box([depth; 64]);
+        deeper(depth + 1).wrapping_add(frame[(depth % 64) as usize])
+    }
+    hprintln!("{}", deeper(0));
+    exit(false)
 }
 
 /// What the port has seen, in order.
@@ -109,6 +135,7 @@ impl SafeStatePort for Qemu {
                 hprintln!("FAULT: HardFault at pc {:#x} (lr {:#x})", pc, lr)
             }
             Fault::Stalled(part) => hprintln!("FAULT: {} stalled", part.name()),
+            Fault::StackOverflow => hprintln!("FAULT: stack overflow"),
         }
     }
 
@@ -116,13 +143,20 @@ impl SafeStatePort for Qemu {
         self.expect(Seen::Reported, Seen::Nothing, "reset");
         let expected_kind_ok = match FaultRecord::decode(&self.kept).map(|r| r.fault()) {
             Some(Fault::Panic { line }) => {
-                !cfg!(feature = "safe-state-hardfault") && line == PANIC_LINE.load(Ordering::SeqCst)
+                !cfg!(feature = "safe-state-hardfault")
+                    && !cfg!(feature = "safe-state-stack-overflow")
+                    && line == PANIC_LINE.load(Ordering::SeqCst)
             }
             Some(Fault::HardFault { pc, .. }) => cfg!(feature = "safe-state-hardfault") && pc != 0,
+            Some(Fault::StackOverflow) => cfg!(feature = "safe-state-stack-overflow"),
             _ => false,
         };
         if !expected_kind_ok {
             hprintln!("safe state: the kept record is not the fault raised");
+            self.failures += 1;
+        }
+        if SENTINEL.load(Ordering::SeqCst) != SENTINEL_VALUE {
+            hprintln!("safe state: a static was overwritten");
             self.failures += 1;
         }
         hprintln!("safe state: reset");
@@ -147,9 +181,12 @@ fn panic(info: &core::panic::PanicInfo) -> ! {
     enter(FaultRecord::from_panic(info))
 }
 
-#[exception]
-unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
-    enter(FaultRecord::hard_fault(frame.pc(), frame.lr()))
+mkgp_mount::hard_fault_entry!(on_hard_fault);
+
+/// The HardFault handler, on a fresh stack, as the firmware's.
+unsafe extern "C" fn on_hard_fault(frame: *const u32) -> ! {
+    // SAFETY: entered from `hard_fault_entry!` with its frame.
+    enter(unsafe { hard_fault_record(frame) })
 }
 
 #[exception]
