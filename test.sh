@@ -72,7 +72,7 @@ LLVM_OBJDUMP="$LLVM_BIN/llvm-objdump"
 [ -x "$LLVM_SIZE" ] && [ -x "$LLVM_OBJDUMP" ] ||
     die "llvm-size or llvm-objdump not found in $LLVM_BIN (rustup component add llvm-tools)"
 echo "rustc: $(rustc --version)"
-echo "flip-link: $(flip-link --version 2>/dev/null || echo installed)"
+echo "flip-link: $(command -v flip-link)"
 echo "qemu:  $(qemu-system-arm --version | head -n1)"
 
 HAVE_HOST_TESTS=0
