@@ -263,11 +263,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             self.faults.bad_input = self.faults.bad_input.saturating_add(1);
             return self.dark_frame(time_s, time_step);
         }
-        let dt = Self::sanitize_step(time_step);
-        let timestamp = self.timestamp(time_s);
         let variance = measurement_variance(snr.to_f64());
-        self.last_prediction_end = Some(timestamp);
-
         let gain = self.config.control_gain;
         let mut hysteresis = gain
             * (S::from_f64(1.0 - HYSTERESIS) * input
@@ -277,25 +273,16 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             control = S::ZERO;
             hysteresis = S::ZERO;
         }
-        self.blend = 0.0;
-        if self.frames >= WARM_UP_FRAMES {
-            let now = time_s - self.start_time;
-            let failed = self.update(now + 0.5 * dt, timestamp);
-            self.prediction = self.predict(now, dt);
-            control += self.config.prediction_gain * self.prediction;
-            // A failed fit falls back to the reactive term alone.
-            self.blend = if failed {
-                0.0
-            } else {
-                self.blend_weight_at(timestamp)
-            };
+        let (timestamp, prediction) = self.model_step(time_s, time_step);
+        if let Some(prediction) = prediction {
+            control += self.config.prediction_gain * prediction;
+            // The blend weight is 0 after a failed fit: hysteresis alone.
             let b = S::from_f64(self.blend);
             control = b * control + (S::ONE - b) * hysteresis;
         }
         if !control.is_finite() {
             control = hysteresis;
         }
-        self.learning_progress = self.progress_at(timestamp);
         self.finish_frame(timestamp, input.to_f64(), variance, control)
     }
 
@@ -333,24 +320,13 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             }
             _ => (unmeasured_estimate, DARK_VARIANCE),
         };
-        let dt = Self::sanitize_step(time_step);
-        let timestamp = self.timestamp(time_s);
-        self.last_prediction_end = Some(timestamp);
-        self.blend = 0.0;
-        let mut feed_forward = S::ZERO;
-        if self.frames >= WARM_UP_FRAMES {
-            let now = time_s - self.start_time;
-            let failed = self.update(now + 0.5 * dt, timestamp);
-            self.prediction = self.predict(now, dt);
-            if !failed {
-                self.blend = self.blend_weight_at(timestamp);
-                feed_forward = S::from_f64(self.blend) * self.prediction;
-            }
-        }
+        let (timestamp, prediction) = self.model_step(time_s, time_step);
+        // 0 until the model has earned trust and after a failed fit (the
+        // blend weight).
+        let mut feed_forward = prediction.map_or(S::ZERO, |p| S::from_f64(self.blend) * p);
         if !feed_forward.is_finite() {
             feed_forward = S::ZERO;
         }
-        self.learning_progress = self.progress_at(timestamp);
         self.record(timestamp, gear, variance);
         self.frames = self.frames.saturating_add(1);
         feed_forward
@@ -377,6 +353,31 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         }
         self.dither_offset += offset;
         self.dither_frames_left = DITHER_FRAMES;
+    }
+
+    /// The model's part of a frame with a measurement, shared by
+    /// [`frame`](Self::frame) and [`observe`](Self::observe): returns the
+    /// frame's gear time and, past the warm-up, the predicted change of the
+    /// gear error to `time_s + time_step` (0 if the fit failed). Sets the
+    /// blend weight (0 during the warm-up and after a failed fit) and the
+    /// learning progress.
+    fn model_step(&mut self, time_s: f64, time_step: S) -> (f64, Option<S>) {
+        let dt = Self::sanitize_step(time_step);
+        let timestamp = self.timestamp(time_s);
+        self.last_prediction_end = Some(timestamp);
+        self.blend = 0.0;
+        let mut prediction = None;
+        if self.frames >= WARM_UP_FRAMES {
+            let now = time_s - self.start_time;
+            let failed = self.update(now + 0.5 * dt, timestamp);
+            self.prediction = self.predict(now, dt);
+            prediction = Some(self.prediction);
+            if !failed {
+                self.blend = self.blend_weight_at(timestamp);
+            }
+        }
+        self.learning_progress = self.progress_at(timestamp);
+        (timestamp, prediction)
     }
 
     fn dark_step(&mut self, time_s: f64, time_step: S) -> S {
