@@ -7,6 +7,9 @@ use crate::model::numeric::scalar::Scalar;
 
 /// Write the lower triangle of the Gram matrix of `cells` (ascending) into
 /// `chol`, row i from `table[ci - cj]`, j <= i (lag_table::build).
+// Inline in `Gp::infer`, its one caller, as before the split: out of line
+// the Cortex-M4 bench (guide-sim bench) measured more instructions a frame.
+#[inline(always)]
 pub(super) fn fill<S: Scalar>(
     chol: &mut Ldlt<S, SUBSET, TRIANGLE>,
     grid: &Grid<S>,
