@@ -103,18 +103,18 @@ pub struct Guider<S: Scalar, const N: usize = 2> {
     config: GuiderConfig<S>,
     grid: Grid<S>,
     /// Work buffer shared by the spectrum and the inference (16 KiB in
-    /// `f32`): the spectrum's lines are read as soon as it is computed.
+    /// `f32`): the spectrum's peaks are read as soon as it is computed.
     scratch: [S; FFT_LEN],
-    /// A cell has completed since the lines were last read.
-    lines_stale: bool,
+    /// A cell has completed since the peaks were last read.
+    peaks_stale: bool,
     gp: Gp<S>,
     kernel: Kernel<S, N>,
     trackers: [PeriodTracker; N],
     gates: [f64; N],
     discovery: Discovery<N>,
-    /// The worm line of the current spectrum (recomputed when a cell
+    /// The worm peak of the current spectrum (recomputed when a cell
     /// completes, observed by the tracker on every frame).
-    worm_line_s: Option<f64>,
+    worm_peak_s: Option<f64>,
     frames: u32,
     start_time: f64,
     last_time: f64,
@@ -161,13 +161,13 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             config,
             grid: Grid::new(),
             scratch: [S::ZERO; FFT_LEN],
-            lines_stale: true,
+            peaks_stale: true,
             gp: Gp::new(),
             kernel: Kernel::new(&periods, &gates),
             trackers,
             gates,
             discovery: Discovery::new(seeds),
-            worm_line_s: None,
+            worm_peak_s: None,
             frames: 0,
             start_time: 0.0,
             last_time: 0.0,
@@ -186,9 +186,9 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     /// Forget the data (not the learned periods, nor the fault counters).
     pub fn reset(&mut self) {
         self.grid.clear();
-        self.lines_stale = true;
+        self.peaks_stale = true;
         self.gp.clear();
-        self.worm_line_s = None;
+        self.worm_peak_s = None;
         self.discovery.clear();
         self.gates[1..].fill(0.0);
         self.frames = 0;
@@ -454,9 +454,9 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     fn record(&mut self, timestamp: f64, gear: f64, variance: f64) {
         match self.grid.push(timestamp, gear, variance) {
             Push::Accepted { new_cells: 0 } | Push::Rejected => {}
-            Push::Accepted { .. } => self.lines_stale = true,
+            Push::Accepted { .. } => self.peaks_stale = true,
             Push::Restarted => {
-                self.lines_stale = true;
+                self.peaks_stale = true;
                 self.faults.grid_restarts = self.faults.grid_restarts.saturating_add(1);
             }
         }
@@ -475,20 +475,20 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         if self.config.compute_period
             && timestamp > self.config.periods_for_estimation * self.trackers[0].period_s
         {
-            if self.lines_stale {
-                self.lines_stale = false;
+            if self.peaks_stale {
+                self.peaks_stale = false;
                 if let Some(spectrum) = Spectrum::compute(&self.grid, &mut self.scratch) {
                     let worm = spectrum.strongest(0, NYQUIST_BIN, |_| true);
-                    self.worm_line_s = worm.map(|l| l.period_s);
+                    self.worm_peak_s = worm.map(|p| p.period_s);
                     if N > 1 {
                         let span = self.grid.len() as f64 * CELL_S;
-                        let power = worm.map_or(0.0, |l| l.power);
+                        let power = worm.map_or(0.0, |p| p.power);
                         self.discovery
                             .scan(&spectrum, &mut self.trackers, power, span);
                     }
                 }
             }
-            if let Some(p) = self.worm_line_s {
+            if let Some(p) = self.worm_peak_s {
                 self.trackers[0].observe(p);
             }
             self.discovery.step(&mut self.trackers, &mut self.gates);
