@@ -1,4 +1,5 @@
 use super::*;
+use crate::testing::SplitMix64;
 use Axis::*;
 use Direction::*;
 use Line::*;
@@ -383,25 +384,19 @@ fn size() {
 /// cap.
 #[test]
 fn random_edges_keep_the_invariants() {
-    let mut x = 0x2545_f491_4f6c_dd1du64;
-    let mut rnd = move || {
-        x ^= x << 13;
-        x ^= x >> 7;
-        x ^= x << 17;
-        x
-    };
+    let mut rng = SplitMix64::new(1);
     for glitch in [0u32, 1_000] {
         let mut s = St4::new(glitch, 20_000);
         let mut t = 0u64;
         let mut open: [Option<u64>; 2] = [None, None];
         let mut last: [u64; 2] = [0, 0];
         for _ in 0..200_000 {
-            let r = rnd();
+            let r = rng.next_u64();
             t += r % 3_000;
             let line = [RaPlus, RaMinus, DecPlus, DecMinus][(r >> 20) as usize % 4];
-            let back = if (r >> 30) % 50 == 0 { 5_000 } else { 0 };
+            let back = if (r >> 30).is_multiple_of(50) { 5_000 } else { 0 };
             s.edge(line, (r >> 24) & 1 == 1, t.saturating_sub(back));
-            if (r >> 40) % 3 == 0 {
+            if (r >> 40).is_multiple_of(3) {
                 let now = t + (r >> 44) % 2_000;
                 while let Some(ev) = s.poll(now) {
                     match ev {
