@@ -135,6 +135,10 @@ pub struct Guider<S: Scalar, const N: usize = 2> {
     faults: Faults,
 }
 
+// The model-state budget (docs/reference.md, Goals): the board's 128 KiB of
+// RAM holds it twice at start-up, the static and its temporary on the stack.
+const _: () = assert!(core::mem::size_of::<Guider<f32, 2>>() <= 64 * 1024);
+
 /// Measurement variance from the star's SNR (single-kernel model).
 fn measurement_variance(snr: f64) -> f64 {
     let snr = if snr.is_finite() && snr > 0.0 {
