@@ -394,7 +394,11 @@ fn random_edges_keep_the_invariants() {
             let r = rng.next_u64();
             t += r % 3_000;
             let line = [RaPlus, RaMinus, DecPlus, DecMinus][(r >> 20) as usize % 4];
-            let back = if (r >> 30).is_multiple_of(50) { 5_000 } else { 0 };
+            let back = if (r >> 30).is_multiple_of(50) {
+                5_000
+            } else {
+                0
+            };
             s.edge(line, (r >> 24) & 1 == 1, t.saturating_sub(back));
             if (r >> 40).is_multiple_of(3) {
                 let now = t + (r >> 44) % 2_000;
