@@ -373,7 +373,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         let mut prediction = None;
         if self.frames >= WARM_UP_FRAMES {
             let now = time_s - self.start_time;
-            let failed = self.update(now + 0.5 * dt, timestamp);
+            let failed = self.track_and_fit(now + 0.5 * dt, timestamp);
             self.prediction = self.predict(now, dt);
             prediction = Some(self.prediction);
             if !failed {
@@ -393,7 +393,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             && timestamp > self.config.periods_for_inference * self.trackers[0].period_s
         {
             let now = time_s - self.start_time;
-            if !self.update(now + 0.5 * dt, timestamp) {
+            if !self.track_and_fit(now + 0.5 * dt, timestamp) {
                 self.prediction = self.predict(now, dt);
                 control = self.prediction;
             }
@@ -469,7 +469,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     /// Track the periods and fit the model around `centre` (s since start).
     /// Returns true if the fit failed (the frame then falls back to the
     /// reactive term); with too little data the last fit, if any, is kept.
-    fn update(&mut self, centre: f64, timestamp: f64) -> bool {
+    fn track_and_fit(&mut self, centre: f64, timestamp: f64) -> bool {
         let Some(origin) = self.grid.origin() else {
             return false;
         };
