@@ -182,17 +182,17 @@ fn random_input_keeps_the_rates_in_range() {
     let mut dropped = 0u32;
     for _ in 0..200_000 {
         now += rng.below(20_000);
-        steps += (rng.below(400)) as i64;
+        steps += rng.below(400) as i64;
         let mut list = Vec::new();
         for _ in 0..rng.below(4) {
-            let line = Line::ALL[(rng.below(4)) as usize];
+            let line = Line::ALL[rng.below(4) as usize];
             // Mostly in order, sometimes from the past.
             let at = now.saturating_sub(rng.below(3_000));
             list.push((line, rng.below(2) == 0, at));
         }
         let mut src = edges(&list);
         if rng.below(500) == 0 {
-            dropped += 1 + (rng.below(5)) as u32;
+            dropped += 1 + rng.below(5) as u32;
         }
         src.queue = EdgeQueue {
             dropped,
@@ -210,9 +210,9 @@ fn random_input_keeps_the_rates_in_range() {
                 until_gear_s: 1e9,
             }),
             2 => Some(FeedForward {
-                rate_arcsec_per_s: (rng.below(200)) as f32 / 100.0 - 1.0,
+                rate_arcsec_per_s: rng.below(200) as f32 / 100.0 - 1.0,
                 from_gear_s: 0.0,
-                until_gear_s: (rng.below(100_000)) as f64,
+                until_gear_s: rng.below(100_000) as f64,
             }),
             _ => None,
         };

@@ -451,7 +451,7 @@ mod tests {
         let mut by_tick = PhaseAccumulator::new();
         let mut at_once = PhaseAccumulator::new();
         for _ in 0..2_000 {
-            let rate = (rng.below(50_001)) as f32 - 25_000.0;
+            let rate = rng.below(50_001) as f32 - 25_000.0;
             let rate = if rng.below(4) == 0 { 0.0 } else { rate };
             by_tick.set_rate(rate, 30_000.0, TICK);
             at_once.set_rate(rate, 30_000.0, TICK);
