@@ -13,8 +13,9 @@
 
 use crate::model::gp::grid::{Grid, CELL_S};
 use crate::model::gp::kernel::Kernel;
+use crate::model::gp::subset::Subset;
 use crate::model::gp::trend::Trend;
-use crate::model::gp::{gram, lag_table, subset};
+use crate::model::gp::{gram, lag_table};
 use crate::model::ldlt::{FactorError, Ldlt};
 use crate::model::numeric::scalar::Scalar;
 
@@ -37,12 +38,10 @@ pub enum InferError {
 /// indices (about 22.5 KiB in `f32` all told).
 pub struct Gp<S: Scalar> {
     chol: Ldlt<S, SUBSET, TRIANGLE>,
-    /// Held-cell index of each subset member, ascending.
-    cells: [u16; SUBSET],
-    /// The posterior weights `w`.
+    subset: Subset,
+    /// The posterior weights `w`, one per member of the subset.
     weights: [S; SUBSET],
     trend: Trend<S>,
-    n: usize,
     /// β₁, per second.
     slope: S,
     valid: bool,
@@ -52,10 +51,9 @@ impl<S: Scalar> Gp<S> {
     pub fn new() -> Self {
         Self {
             chol: Ldlt::new(),
-            cells: [0; SUBSET],
+            subset: Subset::new(),
             weights: [S::ZERO; SUBSET],
             trend: Trend::new(),
-            n: 0,
             slope: S::ZERO,
             valid: false,
         }
@@ -68,7 +66,7 @@ impl<S: Scalar> Gp<S> {
 
     pub fn clear(&mut self) {
         self.valid = false;
-        self.n = 0;
+        self.subset.clear();
     }
 
     /// Fit the model around `centre` (seconds, relative to the grid origin).
@@ -86,11 +84,11 @@ impl<S: Scalar> Gp<S> {
         if grid.len() < 2 {
             return Err(InferError::TooLittleData);
         }
-        let Some(n) = subset::select(grid, kernel, centre, scratch, &mut self.cells) else {
+        if !self.subset.select(grid, kernel, centre, scratch) {
             return Err(InferError::Degenerate);
-        };
-        self.n = n;
-        let cells = &self.cells[..n];
+        }
+        let cells = self.subset.cells();
+        let n = cells.len();
         let Some(table) = lag_table::build(scratch, cells, kernel) else {
             return Err(InferError::Degenerate);
         };
@@ -122,8 +120,8 @@ impl<S: Scalar> Gp<S> {
         let d1 = S::from_f64(x1 - t_newest);
         let cell = S::from_f64(CELL_S);
         let mut change = S::ZERO;
-        for i in 0..self.n {
-            let back = S::from_usize(newest - self.cells[i] as usize) * cell;
+        for (i, &c) in self.subset.cells().iter().enumerate() {
+            let back = S::from_usize(newest - c as usize) * cell;
             let dk = kernel.projection(d1 + back) - kernel.projection(d0 + back);
             change += dk * self.weights[i];
         }

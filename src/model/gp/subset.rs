@@ -8,89 +8,114 @@ use crate::model::gp::infer::SUBSET;
 use crate::model::gp::kernel::Kernel;
 use crate::model::numeric::scalar::Scalar;
 
-/// Choose the cells with the largest full-kernel covariance to `centre`;
-/// of equal covariances the older cell wins (NaN counts as the lowest).
-/// Leaves them in `cells`, ascending, and returns how many. `scratch` must
-/// hold two covariances per cell (`2 * grid.len()`); returns None otherwise.
-///
-/// The members are exactly the `SUBSET` first cells in the order
-/// (covariance descending, cell ascending), found without a heap: the
-/// covariances go to `scratch`, a copy is partitioned around the
-/// `SUBSET`-th (`select_nth_unstable_by`, O(cells)), and one pass in cell
-/// order takes every cell above that threshold and, of the cells equal
-/// to it, the oldest ones, ascending as they come.
-// Inline in `Gp::infer`, its one caller, as before the split: out of line
-// the Cortex-M4 bench (guide-sim bench) measured more instructions a frame.
-#[inline(always)]
-pub(super) fn select<S: Scalar, const N: usize>(
-    grid: &Grid<S>,
-    kernel: &Kernel<S, N>,
-    centre: f64,
-    scratch: &mut [S],
-    cells: &mut [u16; SUBSET],
-) -> Option<usize> {
-    let total = grid.len();
-    let k = total.min(SUBSET);
-    if total <= SUBSET {
-        for (i, c) in cells.iter_mut().enumerate().take(total) {
-            *c = i as u16;
+/// The members of one inference: held-cell indices, ascending.
+pub(super) struct Subset {
+    cells: [u16; SUBSET],
+    n: usize,
+}
+
+impl Subset {
+    pub(super) fn new() -> Self {
+        Self {
+            cells: [0; SUBSET],
+            n: 0,
         }
-        return Some(k);
     }
-    if scratch.len() < 2 * total {
-        return None;
+
+    pub(super) fn clear(&mut self) {
+        self.n = 0;
     }
-    let (cov, rest) = scratch.split_at_mut(total);
-    let copy = &mut rest[..total];
-    let centre_s = S::from_f64(centre);
-    // Cell times in S, stepping 5 s from the oldest: exact (multiples of
-    // 2.5 s; in f32 up to 2^23 s), so each equals
-    // `S::from_f64(grid.cell_time(j))` bit for bit without the software
-    // f64 arithmetic per cell on the target.
-    let step = S::from_f64(CELL_S);
-    let mut t_j = S::from_f64(grid.cell_time(0));
-    for c in cov.iter_mut() {
-        *c = kernel.full(centre_s - t_j);
-        t_j += step;
+
+    pub(super) fn cells(&self) -> &[u16] {
+        &self.cells[..self.n]
     }
-    copy.copy_from_slice(cov);
-    // Descending, NaN last: a total order.
-    let order = |a: &S, b: &S| {
-        if *a > *b {
-            Ordering::Less
-        } else if *a < *b {
-            Ordering::Greater
-        } else if *a == *b || (is_nan(*a) && is_nan(*b)) {
-            Ordering::Equal
-        } else if is_nan(*a) {
-            Ordering::Greater
-        } else {
-            Ordering::Less
-        }
-    };
-    let (above, &mut threshold, _) = copy.select_nth_unstable_by(k - 1, order);
-    let mut ties = k - above
-        .iter()
-        .filter(|c| order(c, &threshold) == Ordering::Less)
-        .count();
-    let mut m = 0;
-    for (j, c) in cov.iter().enumerate() {
-        let take = match order(c, &threshold) {
-            Ordering::Less => true,
-            Ordering::Equal if ties > 0 => {
-                ties -= 1;
-                true
+
+    /// Choose the cells with the largest full-kernel covariance to `centre`;
+    /// of equal covariances the older cell wins (NaN counts as the lowest).
+    /// `scratch` must hold two covariances per cell (`2 * grid.len()`);
+    /// returns false otherwise.
+    ///
+    /// The members are exactly the `SUBSET` first cells in the order
+    /// (covariance descending, cell ascending), found without a heap: the
+    /// covariances go to `scratch`, a copy is partitioned around the
+    /// `SUBSET`-th (`select_nth_unstable_by`, O(cells)), and one pass in
+    /// cell order takes every cell above that threshold and, of the cells
+    /// equal to it, the oldest ones, ascending as they come.
+    // Inline in `Gp::infer`, its one caller, as before the split: out of
+    // line the Cortex-M4 bench (guide-sim bench) measured more instructions
+    // a frame.
+    #[inline(always)]
+    pub(super) fn select<S: Scalar, const N: usize>(
+        &mut self,
+        grid: &Grid<S>,
+        kernel: &Kernel<S, N>,
+        centre: f64,
+        scratch: &mut [S],
+    ) -> bool {
+        let total = grid.len();
+        let k = total.min(SUBSET);
+        self.n = k;
+        if total <= SUBSET {
+            for (i, c) in self.cells.iter_mut().enumerate().take(total) {
+                *c = i as u16;
             }
-            _ => false,
+            return true;
+        }
+        if scratch.len() < 2 * total {
+            return false;
+        }
+        let (cov, rest) = scratch.split_at_mut(total);
+        let copy = &mut rest[..total];
+        let centre_s = S::from_f64(centre);
+        // Cell times in S, stepping 5 s from the oldest: exact (multiples of
+        // 2.5 s; in f32 up to 2^23 s), so each equals
+        // `S::from_f64(grid.cell_time(j))` bit for bit without the software
+        // f64 arithmetic per cell on the target.
+        let step = S::from_f64(CELL_S);
+        let mut t_j = S::from_f64(grid.cell_time(0));
+        for c in cov.iter_mut() {
+            *c = kernel.full(centre_s - t_j);
+            t_j += step;
+        }
+        copy.copy_from_slice(cov);
+        // Descending, NaN last: a total order.
+        let order = |a: &S, b: &S| {
+            if *a > *b {
+                Ordering::Less
+            } else if *a < *b {
+                Ordering::Greater
+            } else if *a == *b || (is_nan(*a) && is_nan(*b)) {
+                Ordering::Equal
+            } else if is_nan(*a) {
+                Ordering::Greater
+            } else {
+                Ordering::Less
+            }
         };
-        if take {
-            if let Some(slot) = cells.get_mut(m) {
-                *slot = j as u16;
+        let (above, &mut threshold, _) = copy.select_nth_unstable_by(k - 1, order);
+        let mut ties = k - above
+            .iter()
+            .filter(|c| order(c, &threshold) == Ordering::Less)
+            .count();
+        let mut m = 0;
+        for (j, c) in cov.iter().enumerate() {
+            let take = match order(c, &threshold) {
+                Ordering::Less => true,
+                Ordering::Equal if ties > 0 => {
+                    ties -= 1;
+                    true
+                }
+                _ => false,
+            };
+            if take {
+                if let Some(slot) = self.cells.get_mut(m) {
+                    *slot = j as u16;
+                }
+                m += 1;
             }
-            m += 1;
         }
+        true
     }
-    Some(k)
 }
 
 fn is_nan<S: Scalar>(x: S) -> bool {
@@ -134,11 +159,11 @@ mod tests {
     }
 
     fn check<S: Scalar, const N: usize>(grid: &Grid<S>, kernel: &Kernel<S, N>, centre: f64) {
-        let mut cells = [0; SUBSET];
+        let mut subset = Subset::new();
         let mut scratch = [S::ZERO; 2 * GRID_CELLS];
-        let n = select(grid, kernel, centre, &mut scratch, &mut cells).unwrap();
+        assert!(subset.select(grid, kernel, centre, &mut scratch));
         let want = reference(grid, kernel, centre);
-        assert_eq!(&cells[..n], &want[..], "centre {centre}");
+        assert_eq!(subset.cells(), &want[..], "centre {centre}");
     }
 
     #[test]

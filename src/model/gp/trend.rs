@@ -33,10 +33,6 @@ impl<S: Scalar> Trend<S> {
     /// With `chol` the factored Gram matrix of `cells`, leave `w` in
     /// `weights` (as long as `cells`) and return β₁ per second. `centre`:
     /// the prediction point, seconds relative to the grid origin.
-    // Inline in `Gp::infer`, its one caller, as before the split: out of
-    // line the Cortex-M4 bench (guide-sim bench) measured more instructions
-    // a frame.
-    #[inline(always)]
     pub(super) fn solve(
         &mut self,
         chol: &Ldlt<S, SUBSET, TRIANGLE>,
