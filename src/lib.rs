@@ -11,3 +11,7 @@ pub mod control_loop;
 pub mod model;
 pub mod mount;
 pub mod safety;
+// Random numbers for the unit tests, and through the `testing` feature for
+// target-tests and host-tests: one generator, not a copy per test.
+#[cfg(any(test, feature = "testing"))]
+pub mod testing;

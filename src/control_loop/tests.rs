@@ -3,6 +3,7 @@ use super::*;
 use crate::mount::config::MountConfig;
 use crate::mount::guiding::FRAME_QUEUE;
 use crate::mount::st4::{Axis, Line};
+use crate::testing::SplitMix64;
 use std::collections::VecDeque;
 use std::vec::Vec;
 
@@ -175,35 +176,29 @@ fn frames_wait_for_room_and_the_oldest_are_dropped_when_none_comes() {
 fn random_input_keeps_the_rates_in_range() {
     let m = mount();
     let (mut lp, _) = ControlLoop::start(&m, 0, 0);
-    let mut rng = 0x9e37_79b9_7f4a_7c15_u64;
-    let mut next = move || {
-        rng ^= rng << 13;
-        rng ^= rng >> 7;
-        rng ^= rng << 17;
-        rng
-    };
+    let mut rng = SplitMix64::new(1);
     let mut now = 0u64;
     let mut steps = 0i64;
     let mut dropped = 0u32;
     for _ in 0..200_000 {
-        now += next() % 20_000;
-        steps += (next() % 400) as i64;
+        now += rng.below(20_000);
+        steps += rng.below(400) as i64;
         let mut list = Vec::new();
-        for _ in 0..next() % 4 {
-            let line = Line::ALL[(next() % 4) as usize];
+        for _ in 0..rng.below(4) {
+            let line = Line::ALL[rng.below(4) as usize];
             // Mostly in order, sometimes from the past.
-            let at = now.saturating_sub(next() % 3_000);
-            list.push((line, next() % 2 == 0, at));
+            let at = now.saturating_sub(rng.below(3_000));
+            list.push((line, rng.below(2) == 0, at));
         }
         let mut src = edges(&list);
-        if next() % 500 == 0 {
-            dropped += 1 + (next() % 5) as u32;
+        if rng.below(500) == 0 {
+            dropped += 1 + rng.below(5) as u32;
         }
         src.queue = EdgeQueue {
             dropped,
-            levels: [0, 1, 2, 3].map(|_| next() % 2 == 0),
+            levels: [0, 1, 2, 3].map(|_| rng.below(2) == 0),
         };
-        let ff = match next() % 50 {
+        let ff = match rng.below(50) {
             0 => Some(FeedForward {
                 rate_arcsec_per_s: f32::NAN,
                 from_gear_s: 0.0,
@@ -215,9 +210,9 @@ fn random_input_keeps_the_rates_in_range() {
                 until_gear_s: 1e9,
             }),
             2 => Some(FeedForward {
-                rate_arcsec_per_s: (next() % 200) as f32 / 100.0 - 1.0,
+                rate_arcsec_per_s: rng.below(200) as f32 / 100.0 - 1.0,
                 from_gear_s: 0.0,
-                until_gear_s: (next() % 100_000) as f64,
+                until_gear_s: rng.below(100_000) as f64,
             }),
             _ => None,
         };
@@ -233,6 +228,6 @@ fn random_input_keeps_the_rates_in_range() {
                 assert!(matches!(axis, Axis::Ra | Axis::Dec));
             }
         }
-        while next() % 3 == 0 && lp.take_frame().is_some() {}
+        while rng.below(3) == 0 && lp.take_frame().is_some() {}
     }
 }

@@ -103,18 +103,18 @@ pub struct Guider<S: Scalar, const N: usize = 2> {
     config: GuiderConfig<S>,
     grid: Grid<S>,
     /// Work buffer shared by the spectrum and the inference (16 KiB in
-    /// `f32`): the spectrum's lines are read as soon as it is computed.
+    /// `f32`): the spectrum's peaks are read as soon as it is computed.
     scratch: [S; FFT_LEN],
-    /// A cell has completed since the lines were last read.
-    lines_stale: bool,
+    /// A cell has completed since the peaks were last read.
+    peaks_stale: bool,
     gp: Gp<S>,
     kernel: Kernel<S, N>,
     trackers: [PeriodTracker; N],
     gates: [f64; N],
     discovery: Discovery<N>,
-    /// The worm line of the current spectrum (recomputed when a cell
+    /// The worm peak of the current spectrum (recomputed when a cell
     /// completes, observed by the tracker on every frame).
-    worm_line_s: Option<f64>,
+    worm_peak_s: Option<f64>,
     frames: u32,
     start_time: f64,
     last_time: f64,
@@ -134,6 +134,10 @@ pub struct Guider<S: Scalar, const N: usize = 2> {
     blend: f64,
     faults: Faults,
 }
+
+// The model-state budget (docs/reference.md, Goals): the board's 128 KiB of
+// RAM holds it twice at start-up, the static and its temporary on the stack.
+const _: () = assert!(core::mem::size_of::<Guider<f32, 2>>() <= 64 * 1024);
 
 /// Measurement variance from the star's SNR (single-kernel model).
 fn measurement_variance(snr: f64) -> f64 {
@@ -161,13 +165,13 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             config,
             grid: Grid::new(),
             scratch: [S::ZERO; FFT_LEN],
-            lines_stale: true,
+            peaks_stale: true,
             gp: Gp::new(),
             kernel: Kernel::new(&periods, &gates),
             trackers,
             gates,
             discovery: Discovery::new(seeds),
-            worm_line_s: None,
+            worm_peak_s: None,
             frames: 0,
             start_time: 0.0,
             last_time: 0.0,
@@ -186,9 +190,9 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     /// Forget the data (not the learned periods, nor the fault counters).
     pub fn reset(&mut self) {
         self.grid.clear();
-        self.lines_stale = true;
+        self.peaks_stale = true;
         self.gp.clear();
-        self.worm_line_s = None;
+        self.worm_peak_s = None;
         self.discovery.clear();
         self.gates[1..].fill(0.0);
         self.frames = 0;
@@ -263,11 +267,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             self.faults.bad_input = self.faults.bad_input.saturating_add(1);
             return self.dark_frame(time_s, time_step);
         }
-        let dt = Self::sanitize_step(time_step);
-        let timestamp = self.timestamp(time_s);
         let variance = measurement_variance(snr.to_f64());
-        self.last_prediction_end = Some(timestamp);
-
         let gain = self.config.control_gain;
         let mut hysteresis = gain
             * (S::from_f64(1.0 - HYSTERESIS) * input
@@ -277,25 +277,16 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             control = S::ZERO;
             hysteresis = S::ZERO;
         }
-        self.blend = 0.0;
-        if self.frames >= WARM_UP_FRAMES {
-            let now = time_s - self.start_time;
-            let failed = self.update(now + 0.5 * dt, timestamp);
-            self.prediction = self.predict(now, dt);
-            control += self.config.prediction_gain * self.prediction;
-            // A failed fit falls back to the reactive term alone.
-            self.blend = if failed {
-                0.0
-            } else {
-                self.blend_weight_at(timestamp)
-            };
+        let (timestamp, prediction) = self.model_step(time_s, time_step);
+        if let Some(prediction) = prediction {
+            control += self.config.prediction_gain * prediction;
+            // The blend weight is 0 after a failed fit: hysteresis alone.
             let b = S::from_f64(self.blend);
             control = b * control + (S::ONE - b) * hysteresis;
         }
         if !control.is_finite() {
             control = hysteresis;
         }
-        self.learning_progress = self.progress_at(timestamp);
         self.finish_frame(timestamp, input.to_f64(), variance, control)
     }
 
@@ -333,24 +324,13 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             }
             _ => (unmeasured_estimate, DARK_VARIANCE),
         };
-        let dt = Self::sanitize_step(time_step);
-        let timestamp = self.timestamp(time_s);
-        self.last_prediction_end = Some(timestamp);
-        self.blend = 0.0;
-        let mut feed_forward = S::ZERO;
-        if self.frames >= WARM_UP_FRAMES {
-            let now = time_s - self.start_time;
-            let failed = self.update(now + 0.5 * dt, timestamp);
-            self.prediction = self.predict(now, dt);
-            if !failed {
-                self.blend = self.blend_weight_at(timestamp);
-                feed_forward = S::from_f64(self.blend) * self.prediction;
-            }
-        }
+        let (timestamp, prediction) = self.model_step(time_s, time_step);
+        // 0 until the model has earned trust and after a failed fit (the
+        // blend weight).
+        let mut feed_forward = prediction.map_or(S::ZERO, |p| S::from_f64(self.blend) * p);
         if !feed_forward.is_finite() {
             feed_forward = S::ZERO;
         }
-        self.learning_progress = self.progress_at(timestamp);
         self.record(timestamp, gear, variance);
         self.frames = self.frames.saturating_add(1);
         feed_forward
@@ -379,6 +359,31 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         self.dither_frames_left = DITHER_FRAMES;
     }
 
+    /// The model's part of a frame with a measurement, shared by
+    /// [`frame`](Self::frame) and [`observe`](Self::observe): returns the
+    /// frame's gear time and, past the warm-up, the predicted change of the
+    /// gear error to `time_s + time_step` (0 if the fit failed). Sets the
+    /// blend weight (0 during the warm-up and after a failed fit) and the
+    /// learning progress.
+    fn model_step(&mut self, time_s: f64, time_step: S) -> (f64, Option<S>) {
+        let dt = Self::sanitize_step(time_step);
+        let timestamp = self.timestamp(time_s);
+        self.last_prediction_end = Some(timestamp);
+        self.blend = 0.0;
+        let mut prediction = None;
+        if self.frames >= WARM_UP_FRAMES {
+            let now = time_s - self.start_time;
+            let failed = self.track_and_fit(now + 0.5 * dt, timestamp);
+            self.prediction = self.predict(now, dt);
+            prediction = Some(self.prediction);
+            if !failed {
+                self.blend = self.blend_weight_at(timestamp);
+            }
+        }
+        self.learning_progress = self.progress_at(timestamp);
+        (timestamp, prediction)
+    }
+
     fn dark_step(&mut self, time_s: f64, time_step: S) -> S {
         let dt = Self::sanitize_step(time_step);
         let timestamp = self.timestamp(time_s);
@@ -388,7 +393,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             && timestamp > self.config.periods_for_inference * self.trackers[0].period_s
         {
             let now = time_s - self.start_time;
-            if !self.update(now + 0.5 * dt, timestamp) {
+            if !self.track_and_fit(now + 0.5 * dt, timestamp) {
                 self.prediction = self.predict(now, dt);
                 control = self.prediction;
             }
@@ -453,9 +458,9 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     fn record(&mut self, timestamp: f64, gear: f64, variance: f64) {
         match self.grid.push(timestamp, gear, variance) {
             Push::Accepted { new_cells: 0 } | Push::Rejected => {}
-            Push::Accepted { .. } => self.lines_stale = true,
+            Push::Accepted { .. } => self.peaks_stale = true,
             Push::Restarted => {
-                self.lines_stale = true;
+                self.peaks_stale = true;
                 self.faults.grid_restarts = self.faults.grid_restarts.saturating_add(1);
             }
         }
@@ -464,7 +469,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     /// Track the periods and fit the model around `centre` (s since start).
     /// Returns true if the fit failed (the frame then falls back to the
     /// reactive term); with too little data the last fit, if any, is kept.
-    fn update(&mut self, centre: f64, timestamp: f64) -> bool {
+    fn track_and_fit(&mut self, centre: f64, timestamp: f64) -> bool {
         let Some(origin) = self.grid.origin() else {
             return false;
         };
@@ -474,20 +479,20 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         if self.config.compute_period
             && timestamp > self.config.periods_for_estimation * self.trackers[0].period_s
         {
-            if self.lines_stale {
-                self.lines_stale = false;
+            if self.peaks_stale {
+                self.peaks_stale = false;
                 if let Some(spectrum) = Spectrum::compute(&self.grid, &mut self.scratch) {
                     let worm = spectrum.strongest(0, NYQUIST_BIN, |_| true);
-                    self.worm_line_s = worm.map(|l| l.period_s);
+                    self.worm_peak_s = worm.map(|p| p.period_s);
                     if N > 1 {
                         let span = self.grid.len() as f64 * CELL_S;
-                        let power = worm.map_or(0.0, |l| l.power);
+                        let power = worm.map_or(0.0, |p| p.power);
                         self.discovery
                             .scan(&spectrum, &mut self.trackers, power, span);
                     }
                 }
             }
-            if let Some(p) = self.worm_line_s {
+            if let Some(p) = self.worm_peak_s {
                 self.trackers[0].observe(p);
             }
             self.discovery.step(&mut self.trackers, &mut self.gates);

@@ -101,6 +101,7 @@ impl StepPulse {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::SplitMix64;
 
     /// Feeds `due` one tick at a time; returns the changes and the count.
     fn run(p: &mut StepPulse, due: &[Option<bool>]) -> (std::vec::Vec<PinChange>, i32) {
@@ -174,16 +175,13 @@ mod tests {
     /// within what is owed.
     #[test]
     fn random_due_steps_keep_the_waveform_legal() {
-        let mut rng = 0x1234_5678_u64;
+        let mut rng = SplitMix64::new(1);
         let mut p = StepPulse::new();
         let (mut step_high, mut dir_forward) = (false, true);
         let (mut due_sum, mut emitted) = (0i64, 0i64);
         let mut last_due = false;
         for _ in 0..200_000 {
-            rng ^= rng << 13;
-            rng ^= rng >> 7;
-            rng ^= rng << 17;
-            let due = match rng % 5 {
+            let due = match rng.below(5) {
                 0 if !last_due => Some(true),
                 1 if !last_due => Some(false),
                 _ => None,

@@ -199,6 +199,7 @@ impl PhaseAccumulator {
 mod tests {
     use super::*;
     use crate::mount::config::MountConfig;
+    use crate::testing::SplitMix64;
     use std::println;
 
     const TICK: u32 = 50_000;
@@ -328,12 +329,9 @@ mod tests {
         // A sweep of rates: |emitted - ideal| <= 0.5 + T * 2^-33 after 12 h.
         let bound = 0.5 + TICKS_12H as f64 / 2f64.powi(33);
         let mut worst = 0.0f64;
-        let mut x = 0x1234_5678_9abc_def0u64;
+        let mut rng = SplitMix64::new(1);
         for _ in 0..10_000 {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            let r = (x >> 40) as f32 / (1u64 << 24) as f32 * 25_000.0;
+            let r = rng.f64_in(0.0, 25_000.0) as f32;
             let mut acc = PhaseAccumulator::new();
             acc.set_rate(r, f32::INFINITY, TICK);
             let e =
@@ -384,16 +382,13 @@ mod tests {
         // signed step count stays within one step of the integral of the
         // (quantized) rates, and no two steps come on consecutive ticks.
         let mut acc = PhaseAccumulator::new();
-        let mut x = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rng = SplitMix64::new(2);
         let mut pos = 0i64;
         let mut integral = 0i128; // Q0.32 steps
         let mut worst = 0.0f64;
         for _ in 0..2_000 {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            let r = ((x >> 32) as u32 as f32 / u32::MAX as f32 - 0.5) * 3000.0;
-            let t = (x & 0x3fff) + 1;
+            let r = rng.f64_in(-1500.0, 1500.0) as f32;
+            let t = rng.below(0x4000) + 1;
             acc.set_rate(r, 1283.5, TICK);
             let inc = acc.increment() as i128;
             let sign = if acc.is_forward() { 1 } else { -1 };
@@ -452,21 +447,15 @@ mod tests {
 
     #[test]
     fn advance_matches_tick_by_tick() {
-        let mut rng = 0x5eed_u64;
-        let mut next = move || {
-            rng = rng
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            rng >> 33
-        };
+        let mut rng = SplitMix64::new(3);
         let mut by_tick = PhaseAccumulator::new();
         let mut at_once = PhaseAccumulator::new();
         for _ in 0..2_000 {
-            let rate = (next() % 50_001) as f32 - 25_000.0;
-            let rate = if next() % 4 == 0 { 0.0 } else { rate };
+            let rate = rng.below(50_001) as f32 - 25_000.0;
+            let rate = if rng.below(4) == 0 { 0.0 } else { rate };
             by_tick.set_rate(rate, 30_000.0, TICK);
             at_once.set_rate(rate, 30_000.0, TICK);
-            let ticks = next() % 300;
+            let ticks = rng.below(300);
             let n = run(&mut by_tick, ticks);
             assert_eq!(at_once.advance(ticks), n, "rate {rate}, {ticks} ticks");
             assert_eq!(at_once, by_tick, "rate {rate}, {ticks} ticks");

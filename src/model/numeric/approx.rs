@@ -406,6 +406,7 @@ fn sqrt_impl(x: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::SplitMix64;
     use std::println;
 
     /// `n + 1` evenly spaced points on `[a, b]` as f32.
@@ -468,12 +469,10 @@ mod tests {
     #[test]
     fn sin_cos_huge_and_special() {
         // All exponents up to f32::MAX, pseudo-random mantissas.
-        let mut state = 0x1234_5678_9abc_def0u64;
+        let mut rng = SplitMix64::new(1);
         let mut worst = 0.0f64;
         for _ in 0..2_000_000 {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
+            let state = rng.next_u64();
             let bits = (state >> 32) as u32 & 0x7F7F_FFFF | ((state as u32) & 0x8000_0000);
             let x = f32::from_bits(bits);
             let e1 = (sin(x) as f64 - libm::sin(x as f64)).abs();
@@ -673,12 +672,9 @@ mod tests {
 
     #[test]
     fn sqrt_matches_libm() {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rng = SplitMix64::new(2);
         for _ in 0..1_000_000 {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            let x = f32::from_bits((state >> 33) as u32); // non-negative
+            let x = f32::from_bits((rng.next_u64() >> 33) as u32); // non-negative
             let a = sqrt(x);
             let b = libm::sqrtf(x);
             assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()));

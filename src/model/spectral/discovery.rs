@@ -2,22 +2,22 @@
 //! the resolution guard the paper leaves open.
 //!
 //! Each new spectrum, every stage s > 0 that has no period yet searches the
-//! spectrum for the strongest line that is neither notched (a harmonic or
+//! spectrum for the strongest peak that is neither notched (a harmonic or
 //! sub-harmonic of a known stage) nor commensurate with one, inside the band
 //! `[4 cells, 1.2 P_0]` or around a user-supplied seed. A candidate is also
 //! refused until the data spans [`RESOLUTION_BEATS`] beat periods against
-//! every known stage: before that, a line near a known one is only that
-//! line's main lobe. A found stage then follows its line in a band around
-//! its own period; its evidence gate opens with the line's amplitude
+//! every known stage: before that, a peak near a known one is only that
+//! peak's main lobe. A found stage then follows its peak in a band around
+//! its own period; its evidence gate opens with the peak's amplitude
 //! relative to the worm's.
 
 use crate::model::gp::grid::CELL_S;
 use crate::model::numeric::scalar::Scalar;
 use crate::model::spectral::period::PeriodTracker;
-use crate::model::spectral::spectrum::{bin_period, period_bin, Line, Spectrum, NYQUIST_BIN};
+use crate::model::spectral::spectrum::{bin_period, period_bin, Peak, Spectrum, NYQUIST_BIN};
 
 /// Half-width of a notch, relative, in frequency. The paper uses 8 %; that
-/// hides a stage 7 % from a known line's harmonic (C5's 155 s stage beside
+/// hides a stage 7 % from a known peak's harmonic (C5's 155 s stage beside
 /// the 432 s worm's 144 s division) although the commensurability guard
 /// admits it. With candidates required to be local maxima, the notch need
 /// not be wider than the guard. See `docs/model.md`.
@@ -32,13 +32,13 @@ pub const COMMENSURATE_MAX_RATIO: u32 = 5;
 /// The unseeded band: from 4 cells to this many worm periods.
 pub const BAND_WORM_PERIODS: f64 = 1.2;
 /// Half-width of the band around a seed, or around a found stage's own
-/// period while it follows its line, relative in frequency.
+/// period while it follows its peak, relative in frequency.
 pub const FOLLOW_WIDTH: f64 = 0.1;
 /// Beat periods of data required against every known stage (resolution
 /// guard). Measured on C2 and C8: see `docs/model.md`.
 pub const RESOLUTION_BEATS: f64 = 1.5;
 /// A found stage that is not yet fully gated in moves to twice or half its
-/// period where that line has this many times the power of its own, if the
+/// period where that peak has this many times the power of its own, if the
 /// new period is below this many worm periods. Measured on C5, C6 and the
 /// PHD2 logs: see `docs/model.md`.
 pub const MOVE_POWER_RATIO: f64 = 2.0;
@@ -62,7 +62,7 @@ pub fn gate(ratio: f64) -> f64 {
     ((ratio - GATE_OFF) / (GATE_FULL - GATE_OFF)).clamp(0.0, 1.0)
 }
 
-/// Whether a line at `period` lies in the notch of a known period.
+/// Whether a peak at `period` lies in the notch of a known period.
 pub fn notched(period: f64, known: &[f64]) -> bool {
     let near = |centre: f64| (centre / period - 1.0).abs() <= NOTCH_WIDTH;
     known.iter().any(|&p| {
@@ -97,16 +97,16 @@ fn band_bins(period: f64, width: f64) -> (f64, f64) {
     (b * (1.0 - width), b * (1.0 + width))
 }
 
-/// The strongest line in the bins `[lo, hi]` that is a local maximum of the
+/// The strongest peak in the bins `[lo, hi]` that is a local maximum of the
 /// spectrum (the strongest bin beside a notch is otherwise the skirt of the
-/// notched line's main lobe) and neither notched nor commensurate with a
+/// notched peak's main lobe) and neither notched nor commensurate with a
 /// known period.
-fn strongest_line<S: Scalar>(
+fn strongest_peak<S: Scalar>(
     spectrum: &Spectrum<'_, S>,
     lo: f64,
     hi: f64,
     known: &[f64],
-) -> Option<Line> {
+) -> Option<Peak> {
     let lo = libm::ceil(lo.max(1.0)) as usize;
     let hi = (libm::floor(hi) as usize).min(NYQUIST_BIN);
     spectrum.strongest(lo, hi, |k| {
@@ -119,21 +119,21 @@ fn strongest_line<S: Scalar>(
     })
 }
 
-/// The line a found stage follows: the strongest within [`FOLLOW_WIDTH`] of
+/// The peak a found stage follows: the strongest within [`FOLLOW_WIDTH`] of
 /// `period`.
-fn line_near<S: Scalar>(spectrum: &Spectrum<'_, S>, period: f64, known: &[f64]) -> Option<Line> {
+fn peak_near<S: Scalar>(spectrum: &Spectrum<'_, S>, period: f64, known: &[f64]) -> Option<Peak> {
     let (lo, hi) = band_bins(period, FOLLOW_WIDTH);
-    strongest_line(spectrum, lo, hi, known)
+    strongest_peak(spectrum, lo, hi, known)
 }
 
 /// What the search knows of one stage.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-struct StageLine {
+struct StageSearch {
     /// The stage has a period (found, or seeded and found near the seed).
     found: bool,
-    /// Its line in the current spectrum, if any.
-    line_period_s: Option<f64>,
-    /// Amplitude of that line relative to the worm's.
+    /// Its peak in the current spectrum, if any.
+    peak_period_s: Option<f64>,
+    /// Amplitude of that peak relative to the worm's.
     ratio_now: f64,
     /// Smoothed ratio, which drives the gate.
     ratio: f64,
@@ -143,7 +143,7 @@ struct StageLine {
 
 /// Search state of the stages; index 0 (the worm) is unused.
 pub struct Discovery<const N: usize> {
-    stages: [StageLine; N],
+    stages: [StageSearch; N],
     seeds: [Option<f64>; N],
 }
 
@@ -151,13 +151,13 @@ impl<const N: usize> Discovery<N> {
     /// `seeds[s]`: the user's estimate of stage s's period, if any.
     pub fn new(seeds: [Option<f64>; N]) -> Self {
         Self {
-            stages: [StageLine::default(); N],
+            stages: [StageSearch::default(); N],
             seeds,
         }
     }
 
     pub fn clear(&mut self) {
-        self.stages = [StageLine::default(); N];
+        self.stages = [StageSearch::default(); N];
     }
 
     /// Smoothed amplitude ratio of a stage.
@@ -165,8 +165,8 @@ impl<const N: usize> Discovery<N> {
         self.stages.get(stage).map_or(0.0, |s| s.ratio)
     }
 
-    /// Read a new spectrum: find or follow every stage's line.
-    /// `worm_power` is the power of the worm's line, `span_s` the data span.
+    /// Read a new spectrum: find or follow every stage's peak.
+    /// `worm_power` is the power of the worm's peak, `span_s` the data span.
     pub fn scan<S: Scalar>(
         &mut self,
         spectrum: &Spectrum<'_, S>,
@@ -179,7 +179,7 @@ impl<const N: usize> Discovery<N> {
         // place them by, and what the search finds is noise (log 04).
         if trackers[0].convergence() < SEARCH_MIN_CONVERGENCE {
             for stage in &mut self.stages {
-                stage.line_period_s = None;
+                stage.peak_period_s = None;
                 stage.ratio_now = 0.0;
             }
             return;
@@ -195,23 +195,23 @@ impl<const N: usize> Discovery<N> {
             }
             let known = &known[..n_known];
             let stage = &mut self.stages[s];
-            stage.line_period_s = None;
+            stage.peak_period_s = None;
             stage.ratio_now = 0.0;
             if !(worm_power > 0.0) {
                 continue;
             }
             let band_lo = 4.0 * CELL_S;
             let band_hi = BAND_WORM_PERIODS * trackers[0].period_s;
-            let line = if stage.found {
+            let peak = if stage.found {
                 let own = trackers[s].period_s;
-                let mut line = line_near(spectrum, own, known);
+                let mut peak = peak_near(spectrum, own, known);
                 // Follow the energy: a stage whose gate is not yet fully
                 // open moves to its octave (twice or half its period) when
-                // that line carries clearly more power than its own. (On C5
+                // that peak carries clearly more power than its own. (On C5
                 // the search can find 77.5 s, the weaker harmonic, before
                 // the 155 s fundamental stands out, and the guard then bars
                 // the fundamental for good; a stage already strong stays,
-                // as C7's dominant 77.5 s harmonic does.) Lines near the
+                // as C7's dominant 77.5 s harmonic does.) Peaks near the
                 // worm's period are its own skirt or de-trend residue.
                 if stage.ratio < GATE_FULL {
                     for relative in [2.0 * own, 0.5 * own] {
@@ -220,11 +220,11 @@ impl<const N: usize> Discovery<N> {
                         {
                             continue;
                         }
-                        let Some(r) = line_near(spectrum, relative, known) else {
+                        let Some(r) = peak_near(spectrum, relative, known) else {
                             continue;
                         };
-                        if r.power > MOVE_POWER_RATIO * line.map_or(0.0, |l| l.power) {
-                            line = Some(r);
+                        if r.power > MOVE_POWER_RATIO * peak.map_or(0.0, |p| p.power) {
+                            peak = Some(r);
                             trackers[s] = PeriodTracker {
                                 period_s: r.period_s,
                                 ..trackers[s]
@@ -232,39 +232,39 @@ impl<const N: usize> Discovery<N> {
                         }
                     }
                 }
-                line
+                peak
             } else {
                 let (lo, hi) = match self.seeds[s] {
                     Some(p) => band_bins(p, FOLLOW_WIDTH),
                     None => (period_bin(band_hi), period_bin(band_lo)),
                 };
-                strongest_line(spectrum, lo, hi, known)
-                    .filter(|l| resolved(l.period_s, known, span_s))
+                strongest_peak(spectrum, lo, hi, known)
+                    .filter(|p| resolved(p.period_s, known, span_s))
             };
-            let Some(line) = line else { continue };
+            let Some(peak) = peak else { continue };
             if !stage.found {
                 stage.found = true;
-                trackers[s] = PeriodTracker::new(line.period_s);
+                trackers[s] = PeriodTracker::new(peak.period_s);
             }
-            stage.line_period_s = Some(line.period_s);
-            stage.ratio_now = libm::sqrt(line.power / worm_power);
+            stage.peak_period_s = Some(peak.period_s);
+            stage.ratio_now = libm::sqrt(peak.power / worm_power);
         }
     }
 
-    /// Once per frame: follow the lines found by the last scan.
+    /// Once per frame: follow the peaks found by the last scan.
     pub fn step(&mut self, trackers: &mut [PeriodTracker; N], gates: &mut [f64; N]) {
         for s in 1..N {
             let stage = &mut self.stages[s];
             stage.ratio = (1.0 - RATIO_SMOOTHING) * stage.ratio + RATIO_SMOOTHING * stage.ratio_now;
-            if let Some(p) = stage.line_period_s {
+            if let Some(p) = stage.peak_period_s {
                 trackers[s].observe(p);
             }
             if stage.found {
                 stage.frames_found = stage.frames_found.saturating_add(1);
-                // A line that has faded (or was never more than a skirt) is
+                // A peak that has faded (or was never more than a skirt) is
                 // given up, so that the search can find the real one.
                 if stage.frames_found > FORGET_AFTER_FRAMES && stage.ratio < FORGET_RATIO {
-                    *stage = StageLine::default();
+                    *stage = StageSearch::default();
                 }
             }
             gates[s] = if stage.found { gate(stage.ratio) } else { 0.0 };
@@ -343,7 +343,7 @@ mod tests {
             worm.power,
             grid.len() as f64 * CELL_S,
         );
-        // The 144 s harmonic is notched; the strongest admissible line is
+        // The 144 s harmonic is notched; the strongest admissible peak is
         // the second stage's fundamental.
         assert!(
             (trackers[1].period_s - 110.0).abs() < 1.5,

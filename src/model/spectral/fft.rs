@@ -265,20 +265,10 @@ fn split_powers<S: Scalar>(buf: &mut [S; FFT_LEN]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::SplitMix64;
     use std::boxed::Box;
     use std::println;
     use std::vec::Vec;
-
-    struct Rng(u64);
-    impl Rng {
-        /// Uniform in [-1, 1).
-        fn next(&mut self) -> f64 {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            (self.0 >> 11) as f64 / (1u64 << 52) as f64 - 1.0
-        }
-    }
 
     /// Naive DFT powers in f64, k = 0..=2048.
     fn naive_powers(x: &[f64]) -> Vec<f64> {
@@ -310,9 +300,15 @@ mod tests {
     }
 
     fn random_input(seed: u64, nonzero: usize) -> Vec<f64> {
-        let mut rng = Rng(seed);
+        let mut rng = SplitMix64::new(seed);
         (0..FFT_LEN)
-            .map(|n| if n < nonzero { rng.next() + 0.3 } else { 0.0 })
+            .map(|n| {
+                if n < nonzero {
+                    rng.f64_in(-1.0, 1.0) + 0.3
+                } else {
+                    0.0
+                }
+            })
             .collect()
     }
 

@@ -11,7 +11,7 @@ use crate::model::spectral::fft::{power_spectrum, FFT_LEN};
 
 /// Highest bin of the one-sided spectrum (Nyquist).
 pub const NYQUIST_BIN: usize = FFT_LEN / 2;
-/// Lines slower than this are drift, not gear error, and are ignored.
+/// Peaks slower than this are drift, not gear error, and are ignored.
 pub const MAX_PERIOD_S: f64 = 1500.0;
 /// Ridge on the de-trending normal equations (reference implementation).
 const RIDGE: f64 = 1e-3;
@@ -26,17 +26,17 @@ pub fn period_bin(period: f64) -> f64 {
     FFT_LEN as f64 * CELL_S / period
 }
 
-/// A line found in the spectrum.
+/// A peak found in the spectrum.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Line {
-    /// Period from the parabola through the peak bin and its neighbours (s).
+pub struct Peak {
+    /// Period from the parabola through its bin and the neighbours (s).
     pub period_s: f64,
-    /// Power of the peak bin (|X|², not normalised).
+    /// Power of its bin (|X|², not normalised).
     pub power: f64,
 }
 
 /// The power spectrum of the grid, in a borrowed work buffer of 4096
-/// scalars (16 KiB in `f32`). The guider reads the lines it needs at once and
+/// scalars (16 KiB in `f32`). The guider reads the peaks it needs at once and
 /// then lends the same buffer to the inference as scratch.
 pub struct Spectrum<'a, S> {
     buf: &'a [S; FFT_LEN],
@@ -100,7 +100,7 @@ impl<'a, S: Scalar> Spectrum<'a, S> {
         }
         power_spectrum(buf);
         let low_bin = FFT_LEN.div_ceil(n).min(NYQUIST_BIN);
-        // Lines slower than MAX_PERIOD_S are drift.
+        // Peaks slower than MAX_PERIOD_S are drift.
         let drift_bins = period_bin(MAX_PERIOD_S);
         for k in low_bin..=NYQUIST_BIN {
             if (k as f64) < drift_bins {
@@ -124,10 +124,10 @@ impl<'a, S: Scalar> Spectrum<'a, S> {
         (self.low_bin, NYQUIST_BIN)
     }
 
-    /// The strongest line among the bins in `[lo, hi]` for which `keep`
+    /// The strongest peak among the bins in `[lo, hi]` for which `keep`
     /// holds, refined by a parabola through its neighbours (which may lie
     /// outside the band). The first of equal maxima wins.
-    pub fn strongest(&self, lo: usize, hi: usize, keep: impl Fn(usize) -> bool) -> Option<Line> {
+    pub fn strongest(&self, lo: usize, hi: usize, keep: impl Fn(usize) -> bool) -> Option<Peak> {
         let lo = lo.max(self.low_bin);
         let hi = hi.min(NYQUIST_BIN);
         let mut best: Option<(usize, f64)> = None;
@@ -154,7 +154,7 @@ impl<'a, S: Scalar> Spectrum<'a, S> {
         if !(bin > 0.0) || !peak.is_finite() {
             return None;
         }
-        Some(Line {
+        Some(Peak {
             period_s: bin_period(bin),
             power: peak,
         })
@@ -181,12 +181,12 @@ mod tests {
         let g = grid_of(|t| 9.0 * libm::sin(pi2 * t / 432.0) + 0.001 * t, 8000.0);
         let mut buf = [0.0; FFT_LEN];
         let s = Spectrum::compute(&g, &mut buf).unwrap();
-        let line = s.strongest(0, NYQUIST_BIN, |_| true).unwrap();
-        assert!((line.period_s - 432.0).abs() < 2.0, "{line:?}");
+        let peak = s.strongest(0, NYQUIST_BIN, |_| true).unwrap();
+        assert!((peak.period_s - 432.0).abs() < 2.0, "{peak:?}");
     }
 
     #[test]
-    fn band_and_notch_select_the_second_line() {
+    fn band_and_notch_select_the_second_peak() {
         let pi2 = 2.0 * core::f64::consts::PI;
         let g = grid_of(
             |t| 9.0 * libm::sin(pi2 * t / 288.0) + 4.5 * libm::sin(pi2 * t / 110.0),
@@ -195,16 +195,16 @@ mod tests {
         let mut buf = [0.0; FFT_LEN];
         let s = Spectrum::compute(&g, &mut buf).unwrap();
         let primary = period_bin(288.0);
-        let line = s
+        let peak = s
             .strongest(0, NYQUIST_BIN, |k| {
                 ((k as f64) / primary - 1.0).abs() > 0.08
             })
             .unwrap();
-        assert!((line.period_s - 110.0).abs() < 1.0, "{line:?}");
+        assert!((peak.period_s - 110.0).abs() < 1.0, "{peak:?}");
     }
 
     #[test]
-    fn drift_alone_leaves_no_gear_line() {
+    fn drift_alone_leaves_no_gear_peak() {
         let g = grid_of(|t| 0.01 * t, 4000.0);
         let mut buf = [0.0; FFT_LEN];
         let s = Spectrum::compute(&g, &mut buf).unwrap();

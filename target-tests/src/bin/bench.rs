@@ -41,6 +41,7 @@ use core::hint::black_box;
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use cortex_m_semihosting::hprintln;
 use mkgp_mount::model::guider::{Guider, GuiderConfig};
+use mkgp_mount::testing::Gaussian;
 use support::{exit, Slot};
 
 /// Time between frames (s).
@@ -73,48 +74,6 @@ fn gear_error(t: f64) -> f64 {
         periodic += amplitude * libm::sin(2.0 * PI * t / period);
     }
     periodic + C8_DRIFT_PX_PER_S * t
-}
-
-/// host-tests' noise generator (src/noise.rs): splitmix64 with the paper's
-/// seeding, uniforms in (0, 1), Box-Muller (cos first, then the spare sin).
-struct Gaussian {
-    state: u64,
-    spare: Option<f64>,
-}
-
-const GOLDEN_GAMMA: u64 = 0x9E37_79B9_7F4A_7C15;
-
-impl Gaussian {
-    fn new(seed: u64) -> Self {
-        Gaussian {
-            state: 0x123_4567u64.wrapping_add(seed.wrapping_mul(GOLDEN_GAMMA)),
-            spare: None,
-        }
-    }
-
-    fn next_u64(&mut self) -> u64 {
-        self.state = self.state.wrapping_add(GOLDEN_GAMMA);
-        let mut z = self.state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    fn uniform(&mut self) -> f64 {
-        ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-
-    fn next(&mut self) -> f64 {
-        if let Some(v) = self.spare.take() {
-            return v;
-        }
-        let u1 = self.uniform();
-        let u2 = self.uniform();
-        let r = libm::sqrt(-2.0 * libm::log(u1));
-        let theta = 2.0 * PI * u2;
-        self.spare = Some(r * libm::sin(theta));
-        r * libm::cos(theta)
-    }
 }
 
 // mps2-an386 has 4 MiB of data RAM: both guiders fit side by side.

@@ -5,22 +5,20 @@
 use crate::harness::TestResult;
 use mkgp_mount::model::numeric::dot::dot_rows_portable;
 use mkgp_mount::model::numeric::vfp::dot_rows;
+use mkgp_mount::testing::SplitMix64;
 
-/// xorshift32 values in [-1, 1).
-fn fill(state: &mut u32, out: &mut [f32]) {
+/// Uniform values in (-1, 1).
+fn fill(rng: &mut SplitMix64, out: &mut [f32]) {
     for x in out {
-        *state ^= *state << 13;
-        *state ^= *state >> 17;
-        *state ^= *state << 5;
-        *x = (*state >> 8) as f32 / (1u32 << 23) as f32 - 1.0;
+        *x = rng.f64_in(-1.0, 1.0) as f32;
     }
 }
 
 pub fn dot_rows_matches_portable() -> TestResult {
-    let mut state = 0x1234_5678u32;
+    let mut rng = SplitMix64::new(1);
     let mut data = [[0.0f32; 103]; 5];
     for row in &mut data {
-        fill(&mut state, row);
+        fill(&mut rng, row);
     }
     for n in 0..=103 {
         let rows = [&data[0][..n], &data[1][..n], &data[2][..n], &data[3][..n]];
@@ -53,10 +51,10 @@ pub fn dot_rows_matches_portable() -> TestResult {
 pub fn solve_loops_match_portable() -> TestResult {
     use mkgp_mount::model::numeric::dot::{dot3_portable, sub_scaled3_portable};
     use mkgp_mount::model::numeric::vfp::{dot3, sub_scaled3};
-    let mut state = 0x0bad_cafeu32;
+    let mut rng = SplitMix64::new(2);
     let mut data = [[0.0f32; 43]; 4];
     for row in &mut data {
-        fill(&mut state, row);
+        fill(&mut rng, row);
     }
     let f = [0.75f32, -1.25, 0.5];
     for n in 0..=43 {

@@ -1,0 +1,195 @@
+//! The subset of the grid an inference uses: the [`SUBSET`] cells most
+//! correlated with the prediction point under the full kernel.
+
+use core::cmp::Ordering;
+
+use crate::model::gp::grid::{Grid, CELL_S};
+use crate::model::gp::infer::SUBSET;
+use crate::model::gp::kernel::Kernel;
+use crate::model::numeric::scalar::Scalar;
+
+/// The members of one inference: held-cell indices, ascending.
+pub(super) struct Subset {
+    cells: [u16; SUBSET],
+    n: usize,
+}
+
+impl Subset {
+    pub(super) fn new() -> Self {
+        Self {
+            cells: [0; SUBSET],
+            n: 0,
+        }
+    }
+
+    pub(super) fn clear(&mut self) {
+        self.n = 0;
+    }
+
+    pub(super) fn cells(&self) -> &[u16] {
+        &self.cells[..self.n]
+    }
+
+    /// Choose the cells with the largest full-kernel covariance to `centre`;
+    /// of equal covariances the older cell wins (NaN counts as the lowest).
+    /// `scratch` must hold two covariances per cell (`2 * grid.len()`);
+    /// returns false otherwise.
+    ///
+    /// The members are exactly the `SUBSET` first cells in the order
+    /// (covariance descending, cell ascending), found without a heap: the
+    /// covariances go to `scratch`, a copy is partitioned around the
+    /// `SUBSET`-th (`select_nth_unstable_by`, O(cells)), and one pass in
+    /// cell order takes every cell above that threshold and, of the cells
+    /// equal to it, the oldest ones, ascending as they come.
+    // Inline in `Gp::infer`, its one caller, as before the split: out of
+    // line the Cortex-M4 bench (guide-sim bench) measured more instructions
+    // a frame.
+    #[inline(always)]
+    pub(super) fn select<S: Scalar, const N: usize>(
+        &mut self,
+        grid: &Grid<S>,
+        kernel: &Kernel<S, N>,
+        centre: f64,
+        scratch: &mut [S],
+    ) -> bool {
+        let total = grid.len();
+        let k = total.min(SUBSET);
+        self.n = k;
+        if total <= SUBSET {
+            for (i, c) in self.cells.iter_mut().enumerate().take(total) {
+                *c = i as u16;
+            }
+            return true;
+        }
+        if scratch.len() < 2 * total {
+            return false;
+        }
+        let (cov, rest) = scratch.split_at_mut(total);
+        let copy = &mut rest[..total];
+        let centre_s = S::from_f64(centre);
+        // Cell times in S, stepping 5 s from the oldest: exact (multiples of
+        // 2.5 s; in f32 up to 2^23 s), so each equals
+        // `S::from_f64(grid.cell_time(j))` bit for bit without the software
+        // f64 arithmetic per cell on the target.
+        let step = S::from_f64(CELL_S);
+        let mut t_j = S::from_f64(grid.cell_time(0));
+        for c in cov.iter_mut() {
+            *c = kernel.full(centre_s - t_j);
+            t_j += step;
+        }
+        copy.copy_from_slice(cov);
+        // Descending, NaN last: a total order.
+        let order = |a: &S, b: &S| {
+            if *a > *b {
+                Ordering::Less
+            } else if *a < *b {
+                Ordering::Greater
+            } else if *a == *b || (is_nan(*a) && is_nan(*b)) {
+                Ordering::Equal
+            } else if is_nan(*a) {
+                Ordering::Greater
+            } else {
+                Ordering::Less
+            }
+        };
+        let (above, &mut threshold, _) = copy.select_nth_unstable_by(k - 1, order);
+        let mut ties = k - above
+            .iter()
+            .filter(|c| order(c, &threshold) == Ordering::Less)
+            .count();
+        let mut m = 0;
+        for (j, c) in cov.iter().enumerate() {
+            let take = match order(c, &threshold) {
+                Ordering::Less => true,
+                Ordering::Equal if ties > 0 => {
+                    ties -= 1;
+                    true
+                }
+                _ => false,
+            };
+            if take {
+                if let Some(slot) = self.cells.get_mut(m) {
+                    *slot = j as u16;
+                }
+                m += 1;
+            }
+        }
+        true
+    }
+}
+
+fn is_nan<S: Scalar>(x: S) -> bool {
+    x.partial_cmp(&x).is_none()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::gp::grid::GRID_CELLS;
+    use std::vec::Vec;
+
+    /// The subset by sorting every cell: (covariance descending, cell
+    /// ascending), the first `SUBSET`, ascending.
+    fn reference<S: Scalar, const N: usize>(
+        grid: &Grid<S>,
+        kernel: &Kernel<S, N>,
+        centre: f64,
+    ) -> Vec<u16> {
+        let centre_s = S::from_f64(centre);
+        let mut all: Vec<(S, u16)> = (0..grid.len())
+            .map(|j| {
+                let t = S::from_f64(grid.cell_time(j));
+                (kernel.full(centre_s - t), j as u16)
+            })
+            .collect();
+        all.sort_by(|a, b| b.0.partial_cmp(&a.0).unwrap().then(a.1.cmp(&b.1)));
+        let mut cells: Vec<u16> = all.iter().take(SUBSET).map(|x| x.1).collect();
+        cells.sort();
+        cells
+    }
+
+    fn grid<S: Scalar>(seconds: f64) -> Grid<S> {
+        let mut g = Grid::new();
+        let mut t = 0.0;
+        while t < seconds {
+            g.push(t, libm::sin(t / 50.0), 0.5);
+            t += 2.0;
+        }
+        g
+    }
+
+    fn check<S: Scalar, const N: usize>(grid: &Grid<S>, kernel: &Kernel<S, N>, centre: f64) {
+        let mut subset = Subset::new();
+        let mut scratch = [S::ZERO; 2 * GRID_CELLS];
+        assert!(subset.select(grid, kernel, centre, &mut scratch));
+        let want = reference(grid, kernel, centre);
+        assert_eq!(subset.cells(), &want[..], "centre {centre}");
+    }
+
+    #[test]
+    fn select_is_the_sorted_top_subset() {
+        let g64 = grid::<f64>(6000.0);
+        let g32 = grid::<f32>(6000.0);
+        let k1: Kernel<f64, 1> = Kernel::new(&[288.0], &[1.0]);
+        let k2: Kernel<f64, 2> = Kernel::new(&[288.0, 110.0], &[1.0, 0.7]);
+        let k1f: Kernel<f32, 1> = Kernel::new(&[288.0], &[1.0]);
+        let k2f: Kernel<f32, 2> = Kernel::new(&[432.0, 155.0], &[1.0, 1.0]);
+        let newest = g64.cell_time(g64.len() - 1);
+        for centre in [newest + 2.5, newest + 3.7, newest + 40.0, newest - 1000.0] {
+            check(&g64, &k1, centre);
+            check(&g64, &k2, centre);
+            check(&g32, &k1f, centre);
+            check(&g32, &k2f, centre);
+        }
+        // Centred between two cells in the middle: every covariance comes
+        // twice (k(d) = k(-d)), and of each pair the older cell must win.
+        let mid = g64.cell_time(600) + 2.5;
+        check(&g64, &k1, mid);
+        check(&g64, &k2, mid);
+        check(&g32, &k1f, mid);
+        check(&g32, &k2f, mid);
+        // Few cells: all of them.
+        let small = grid::<f64>(300.0);
+        check(&small, &k1, 310.0);
+    }
+}
