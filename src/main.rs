@@ -167,7 +167,7 @@ fn start(
 
     step_tick::start(ticker, ra, dec, &mount);
 
-    let edges = hal::st4::start(st4_pins);
+    let edges = hal::st4::start(st4_pins, firmware::guiding_task::allow_edge);
     interrupt::SDIO.set_priority(EXECUTOR_HIGH_PRIORITY);
     let high = EXECUTOR_HIGH.start(interrupt::SDIO);
     // From here on a hung guiding task resets the board.

@@ -17,8 +17,15 @@
 //! (a few µs) can be missed entirely, which is harmless since it would be
 //! discarded as a glitch anyway.
 //!
+//! Edge storms: before it queues an edge the handler asks the firmware's
+//! `allow` function (the library's storm guard); when that refuses, the
+//! handler masks the line's interrupt and reports the line released. The
+//! guiding task polls a masked line ([`St4Edges::masked_level`]) and
+//! unmasks it ([`St4Edges::unmask`]) when the guard says it is quiet, so a
+//! storm cannot keep this interrupt busy.
+//!
 //! What the edges mean (debounce, pulses, both lines of an axis at once, the
-//! cap, resynchronising after a loss) is decided by the library
+//! cap, resynchronising after a loss, storms) is decided by the library
 //! (`mkgp_mount::control_loop`), which the firmware feeds with these edges.
 //! This crate does not depend on the library: the firmware package depends
 //! on this one, and a dependency back would be a package cycle. So an edge
@@ -35,10 +42,12 @@ use core::cell::RefCell;
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use embassy_stm32::exti::{ExtiInput, TriggerEdge};
+use embassy_stm32::gpio::Pin;
 use embassy_stm32::gpio::Pull;
 use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_stm32::mode::Blocking;
+use embassy_stm32::pac;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::channel::Channel;
@@ -64,10 +73,19 @@ pub struct PinEdge {
     pub at_us: u64,
 }
 
+/// Asked before an edge of input `index` at `at_us` is queued: `false`
+/// masks the input (an edge storm).
+pub type AllowEdge = fn(index: u8, at_us: u64) -> bool;
+
 struct Inputs {
     lines: [ExtiInput<'static, Blocking>; 4],
+    /// Each input's EXTI line (its pin number).
+    exti: [u8; 4],
     /// The level last reported per line (true = asserted).
     asserted: [bool; 4],
+    /// Inputs whose interrupt is masked (storming).
+    masked: [bool; 4],
+    allow: AllowEdge,
 }
 
 static INPUTS: Mutex<CriticalSectionRawMutex, RefCell<Option<Inputs>>> =
@@ -106,18 +124,61 @@ impl St4Edges {
         let bits = LEVELS.load(Ordering::Relaxed);
         [bits & 1 != 0, bits & 2 != 0, bits & 4 != 0, bits & 8 != 0]
     }
+
+    /// The level of input `index` read now if its interrupt is masked
+    /// (true = asserted); `None` while it is not masked.
+    pub fn masked_level(&self, index: u8) -> Option<bool> {
+        critical_section::with(|cs| {
+            let inputs = INPUTS.borrow(cs).borrow();
+            let inputs = inputs.as_ref()?;
+            let i = usize::from(index);
+            let masked = *inputs.masked.get(i)?;
+            masked.then(|| inputs.lines.get(i).is_some_and(|l| l.is_low()))
+        })
+    }
+
+    /// Unmasks input `index` and reports its level now, as an edge if it
+    /// differs from the level last reported.
+    pub fn unmask(&mut self, index: u8) {
+        critical_section::with(|cs| {
+            let mut inputs = INPUTS.borrow(cs).borrow_mut();
+            if let Some(inputs) = inputs.as_mut() {
+                let i = usize::from(index);
+                if let (Some(masked), Some(&line)) = (inputs.masked.get_mut(i), inputs.exti.get(i))
+                {
+                    *masked = false;
+                    set_interrupt(line, true);
+                }
+            }
+        });
+        on_exti();
+    }
+}
+
+/// Enables or masks the interrupt of EXTI line `line`.
+fn set_interrupt(line: u8, enabled: bool) {
+    pac::EXTI
+        .imr(0)
+        .modify(|w| w.set_line(usize::from(line), enabled));
 }
 
 /// Configures the four ST4 inputs (pull-up, EXTI on both edges), sets the
-/// EXTI interrupt priority and starts reporting edges. Lines already asserted
-/// at start are reported as edges at the start time. Call once.
-pub fn start(pins: St4Pins) -> St4Edges {
+/// EXTI interrupt priority and starts reporting edges, each first offered to
+/// `allow`. Lines already asserted at start are reported as edges at the
+/// start time. Call once.
+pub fn start(pins: St4Pins, allow: AllowEdge) -> St4Edges {
     interrupt::EXTI9_5.set_priority(EXTI_PRIORITY);
     interrupt::EXTI15_10.set_priority(EXTI_PRIORITY);
     // Built and stored with interrupts masked: an edge during set-up finds
     // the inputs in place (an interrupt that found none could not clear its
     // flag and would fire forever).
     critical_section::with(|cs| {
+        let exti = [
+            pins.ra_plus.pin(),
+            pins.ra_minus.pin(),
+            pins.dec_plus.pin(),
+            pins.dec_minus.pin(),
+        ];
         let lines = [
             ExtiInput::new_blocking(pins.ra_plus, pins.ra_plus_exti, Pull::Up, TriggerEdge::Any),
             ExtiInput::new_blocking(
@@ -141,7 +202,10 @@ pub fn start(pins: St4Pins) -> St4Edges {
         ];
         INPUTS.borrow(cs).replace(Some(Inputs {
             lines,
+            exti,
             asserted: [false; 4],
+            masked: [false; 4],
+            allow,
         }));
     });
     // embassy-stm32's init enabled every EXTI vector in the NVIC already; the
@@ -150,7 +214,8 @@ pub fn start(pins: St4Pins) -> St4Edges {
     St4Edges { _private: () }
 }
 
-/// The shared body of both EXTI handlers: clear, then compare levels.
+/// The shared body of both EXTI handlers: clear, then compare levels; a
+/// masked input counts as released.
 fn on_exti() {
     let at_us = Instant::now().as_micros();
     critical_section::with(|cs| {
@@ -162,15 +227,22 @@ fn on_exti() {
             line.clear_pending();
         }
         let mut bits = 0;
-        for (i, line) in inputs.lines.iter().enumerate() {
-            let asserted = line.is_low();
+        for i in 0..inputs.lines.len() {
+            let index = i as u8;
+            let mut asserted = !inputs.masked[i] && inputs.lines[i].is_low();
+            if asserted != inputs.asserted[i] && !inputs.masked[i] && !(inputs.allow)(index, at_us)
+            {
+                inputs.masked[i] = true;
+                set_interrupt(inputs.exti[i], false);
+                asserted = false;
+            }
             if asserted {
                 bits |= 1 << i;
             }
             if asserted != inputs.asserted[i] {
                 inputs.asserted[i] = asserted;
                 let edge = PinEdge {
-                    index: i as u8,
+                    index,
                     asserted,
                     at_us,
                 };

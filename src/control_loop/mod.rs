@@ -11,12 +11,15 @@
 //! - [`ControlLoop::next_wake_us`]: when to wake next if no edge comes (an
 //!   ST4 deadline, or the periodic rate update).
 //! - [`stepping::AxisStepper`]: the step tick of one axis.
+//! - [`storm::StormGuard`]: each ST4 line's edge budget, which the board's
+//!   interrupt asks before it queues an edge.
 //!
 //! The learner (the model) runs elsewhere, at lower priority: it takes the
 //! frames and returns a [`FeedForward`], which the next wake-up installs.
 
 pub mod st4_feed;
 pub mod stepping;
+pub mod storm;
 
 use heapless::Vec;
 

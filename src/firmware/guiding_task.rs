@@ -2,7 +2,7 @@
 //! the time, the step count and the feed-forward into the library's
 //! `ControlLoop`, sets the rates it returns and hands the frames on.
 
-use core::cell::Cell;
+use core::cell::{Cell, RefCell};
 
 use embassy_executor::InterruptExecutor;
 use embassy_futures::select::{select, Either};
@@ -16,6 +16,7 @@ use embassy_time::{Instant, Timer};
 use hal::reset::Watchdog;
 use hal::st4::{PinEdge, St4Edges};
 use mkgp_mount::control_loop::st4_feed::{EdgeQueue, EdgeSource, RawEdge};
+use mkgp_mount::control_loop::storm::StormGuard;
 use mkgp_mount::control_loop::{ControlLoop, FrameRecord};
 use mkgp_mount::mount::config::Mount;
 use mkgp_mount::mount::frame::FeedForward;
@@ -52,6 +53,37 @@ pub static FRAMES: Channel<CriticalSectionRawMutex, FrameRecord, FRAME_QUEUE> = 
 /// older one not yet installed is replaced).
 pub static FEED_FORWARD: Signal<CriticalSectionRawMutex, FeedForward> = Signal::new();
 
+/// The ST4 edge budgets: asked by the EXTI interrupt before it queues an
+/// edge, polled by the guiding task for masked lines.
+static STORM: Mutex<CriticalSectionRawMutex, RefCell<StormGuard>> =
+    Mutex::new(RefCell::new(StormGuard::new()));
+
+/// The hal numbers its inputs in the order of `Line::ALL`.
+fn line(index: u8) -> Line {
+    Line::ALL[usize::from(index) % Line::ALL.len()]
+}
+
+/// The hal's question before it queues an edge (in the EXTI interrupt).
+pub fn allow_edge(index: u8, at_us: u64) -> bool {
+    STORM.lock(|g| g.borrow_mut().on_edge(line(index), at_us))
+}
+
+/// ST4 edge storms caught since start, for the status log.
+pub fn storms() -> u32 {
+    STORM.lock(|g| g.borrow().storms())
+}
+
+/// Unmasks each masked input that the storm guard finds quiet.
+fn poll_masked(edges: &mut St4Edges, now_us: u64) {
+    for index in 0..Line::ALL.len() as u8 {
+        if let Some(level) = edges.masked_level(index) {
+            if STORM.lock(|g| g.borrow_mut().poll(line(index), now_us, level)) {
+                edges.unmask(index);
+            }
+        }
+    }
+}
+
 /// The hal's edge queue, with the edge that woke the task first.
 struct HalEdges<'a> {
     first: Option<PinEdge>,
@@ -61,9 +93,8 @@ struct HalEdges<'a> {
 impl EdgeSource for HalEdges<'_> {
     fn next_edge(&mut self) -> Option<RawEdge> {
         let e = self.first.take().or_else(|| self.queue.try_next())?;
-        // The hal numbers its inputs in the order of `Line::ALL`.
         Some(RawEdge {
-            line: Line::ALL[usize::from(e.index) % Line::ALL.len()],
+            line: line(e.index),
             asserted: e.asserted,
             at_us: e.at_us,
         })
@@ -112,6 +143,7 @@ pub async fn guiding_task(mut edges: St4Edges, mount: Mount, mut watchdog: Watch
         // Every edge stamped before `now` is in the queue by now: the EXTI
         // interrupt preempts this task, and it stamps and queues in one go.
         let now_us = Instant::now().as_micros();
+        poll_masked(&mut edges, now_us);
         let (ra_steps, _) = step_counts();
         let mut source = HalEdges {
             first,

@@ -8,7 +8,7 @@ use mkgp_mount::mount::frame::{FeedForward, FrameKind};
 use mkgp_mount::mount::learner::Learner;
 use mkgp_mount::mount::st4::{Axis, Direction, St4Counters, St4Event};
 
-use crate::firmware::guiding_task::ST4_COUNTERS;
+use crate::firmware::guiding_task::{storms, ST4_COUNTERS};
 use crate::firmware::step_tick::{rates_set, step_counts};
 use crate::STAGES;
 
@@ -173,5 +173,9 @@ pub fn status() {
     );
     if let Some(c) = ST4_COUNTERS.lock(|c| c.get()) {
         counters(c);
+    }
+    let storms = storms();
+    if storms > 0 {
+        defmt::warn!("ST4: {} edge storms (line masked until quiet)", storms);
     }
 }

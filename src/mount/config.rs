@@ -458,6 +458,7 @@ impl Mount {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::SplitMix64;
 
     fn close(a: f64, b: f64, rel: f64) -> bool {
         (a - b).abs() <= rel * b.abs()
@@ -697,22 +698,18 @@ mod tests {
 
     /// A value near `typical` (within a factor of 30 either way), an extreme
     /// or raw bits: configurations both valid and refused.
-    fn draw(rng: &mut u64, typical: f64) -> f64 {
-        *rng ^= *rng << 13;
-        *rng ^= *rng >> 7;
-        *rng ^= *rng << 17;
-        let r = *rng;
-        match r % 8 {
-            0 => f64::from(f32::from_bits((r >> 32) as u32)),
-            1 => [0.0, -1.0, 1e-45, f64::MAX, f64::NAN, u32::MAX as f64][(r >> 8) as usize % 6],
-            _ => typical * 30f64.powf(((r >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0),
+    fn draw(rng: &mut SplitMix64, typical: f64) -> f64 {
+        match rng.below(8) {
+            0 => f64::from(f32::from_bits(rng.next_u64() as u32)),
+            1 => [0.0, -1.0, 1e-45, f64::MAX, f64::NAN, u32::MAX as f64][rng.below(6) as usize],
+            _ => typical * 30f64.powf(rng.f64_in(-1.0, 1.0)),
         }
     }
 
     #[test]
     fn random_configs_are_refused_by_name_or_derive_sane_values() {
         let d = MountConfig::default();
-        let mut rng = 0x9E37_79B9_7F4A_7C15u64;
+        let mut rng = SplitMix64::new(11);
         let (mut ok, mut refused_by) = (0usize, [0usize; 12]);
         for _ in 0..300_000 {
             let mut c = d;
@@ -722,7 +719,7 @@ mod tests {
                     Value::Real(v) => f64::from(v),
                 };
                 // About half the fields keep their default.
-                if draw(&mut rng, 1.0) > 1.0 {
+                if rng.below(2) == 0 {
                     set(&mut c, field, draw(&mut rng, typical));
                 }
             }

@@ -234,20 +234,14 @@ mod tests {
 
     #[test]
     fn random_words_never_decode_and_never_panic() {
-        let mut x = 0x2545_F491_4F6C_DD1Du64;
-        let mut next = move || {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            x
-        };
+        let mut rng = crate::testing::SplitMix64::new(7);
         for _ in 0..200_000 {
             let mut words = [0u32; RECORD_WORDS];
             for w in &mut words {
-                *w = next() as u32;
+                *w = rng.next_u64() as u32;
             }
             // Half the draws carry the magic, so the checksum is what refuses them.
-            if next() & 1 == 0 {
+            if rng.below(2) == 0 {
                 words[0] = MAGIC;
             }
             assert_eq!(FaultRecord::decode(&words), None);

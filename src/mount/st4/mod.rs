@@ -95,6 +95,11 @@ impl Line {
     /// its inputs the same way (`hal::board::St4Pins`).
     pub const ALL: [Line; 4] = [Line::RaPlus, Line::RaMinus, Line::DecPlus, Line::DecMinus];
 
+    /// The line's place in [`Line::ALL`].
+    pub fn index(self) -> usize {
+        self as usize
+    }
+
     /// The axis the line guides.
     pub fn axis(self) -> Axis {
         match self {
