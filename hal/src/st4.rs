@@ -29,7 +29,7 @@
 //! (`mkgp_mount::control_loop`), which the firmware feeds with these edges.
 //! This crate does not depend on the library: the firmware package depends
 //! on this one, and a dependency back would be a package cycle. So an edge
-//! names its input by index, in the order of [`St4Pins`](crate::board::St4Pins)
+//! names its input by index, in the order of [`St4Pins`]
 //! (RA+, RA-, Dec+, Dec-), the order of the library's `Line::ALL`.
 //!
 //! Interrupt priority: both EXTI vectors run at [`EXTI_PRIORITY`] (`P1`),
@@ -63,7 +63,7 @@ pub const EXTI_PRIORITY: Priority = Priority::P1;
 pub const QUEUE_LEN: usize = 32;
 
 /// A level change of one input: `index` is its place in
-/// [`St4Pins`](crate::board::St4Pins) (0 RA+, 1 RA-, 2 Dec+, 3 Dec-),
+/// [`St4Pins`] (0 RA+, 1 RA-, 2 Dec+, 3 Dec-),
 /// `asserted` the new level (true = pulled low by the camera), `at_us` the
 /// embassy-time instant of the interrupt in microseconds since boot.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, defmt::Format)]

@@ -9,12 +9,12 @@
 //! large the frame. The processor then cannot stack the exception frame
 //! either, and enters HardFault with the stack pointer still below RAM,
 //! where an ordinary handler's first push faults again and locks the core
-//! up. The entry of [`hard_fault_entry!`] first moves the stack pointer back
+//! up. The entry of [`hard_fault_entry!`](crate::hard_fault_entry) first moves the stack pointer back
 //! to the top of the stack (the fault path never returns, so what was there
 //! is not needed) and only then calls the handler, in Rust.
 //!
 //! Compiled for the Cortex-M only; the binary that uses it (the firmware,
-//! and the QEMU test of the fault path) invokes [`hard_fault_entry!`] once
+//! and the QEMU test of the fault path) invokes [`hard_fault_entry!`](crate::hard_fault_entry) once
 //! and calls [`install_stack_guard`] first thing.
 
 use crate::safety::fault_record::FaultRecord;
@@ -61,12 +61,12 @@ pub unsafe fn install_stack_guard(ram_origin: u32) {
 }
 
 /// The fault record of a HardFault whose handler was entered through
-/// [`hard_fault_entry!`] with the stack pointer of the fault at `frame`:
+/// [`hard_fault_entry!`](crate::hard_fault_entry) with the stack pointer of the fault at `frame`:
 /// the faulting `pc` and `lr` from the stacked frame, or a stack overflow if
 /// the frame could not be stacked.
 ///
 /// # Safety
-/// Call only from the handler [`hard_fault_entry!`] branches to, with the
+/// Call only from the handler [`hard_fault_entry!`](crate::hard_fault_entry) branches to, with the
 /// `frame` it was given.
 pub unsafe fn hard_fault_record(frame: *const u32) -> FaultRecord {
     // SAFETY: CFSR is a readable system register on every ARMv7-M core.

@@ -2,7 +2,7 @@
 //!
 //! [`Scalar`](super::Scalar)'s `dot_rows`, `dot3` and `sub_scaled3` default
 //! to these; `f32` on the Cortex-M4F overrides them with the hand-scheduled
-//! loops of [`super::vfp`], which give bit-identical results. They need only
+//! loops of `vfp`, which give bit-identical results. They need only
 //! arithmetic, so this module depends on nothing else in the crate: the
 //! scalar type uses it, and the factorisation uses the scalar type.
 
@@ -20,7 +20,7 @@ impl<T: Copy + Default + Add<Output = T> + Mul<Output = T> + AddAssign + SubAssi
 pub const BLOCK: usize = 4;
 
 /// `BLOCK` dot products sharing their second operand: `rows[r] · c`, over
-/// the shortest of the slices ([`Scalar::dot_rows`]: hand-scheduled for
+/// the shortest of the slices ([`Scalar::dot_rows`](super::Scalar::dot_rows): hand-scheduled for
 /// `f32` on the Cortex-M4F, this elsewhere).
 #[inline(always)]
 pub fn dot_rows_portable<S: Elem>(rows: [&[S]; BLOCK], c: &[S]) -> [S; BLOCK] {
@@ -52,7 +52,7 @@ pub fn dot_rows_portable<S: Elem>(rows: [&[S]; BLOCK], c: &[S]) -> [S; BLOCK] {
 }
 
 /// `[l · x, l · y, l · z]` over the shortest slice, each sum taken in order
-/// from zero ([`Scalar::dot3`]: hand-scheduled for `f32` on the
+/// from zero ([`Scalar::dot3`](super::Scalar::dot3): hand-scheduled for `f32` on the
 /// Cortex-M4F, this elsewhere).
 #[inline(always)]
 pub fn dot3_portable<S: Elem>(l: &[S], x: &[S], y: &[S], z: &[S]) -> [S; 3] {
@@ -66,7 +66,7 @@ pub fn dot3_portable<S: Elem>(l: &[S], x: &[S], y: &[S], z: &[S]) -> [S; 3] {
 }
 
 /// `v[r][k] -= l[k] * f[r]` for the three vectors, over the shortest slice
-/// ([`Scalar::sub_scaled3`]).
+/// ([`Scalar::sub_scaled3`](super::Scalar::sub_scaled3)).
 #[inline(always)]
 pub fn sub_scaled3_portable<S: Elem>(l: &[S], v: [&mut [S]; 3], f: [S; 3]) {
     let [x, y, z] = v;
