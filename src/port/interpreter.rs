@@ -51,14 +51,6 @@ impl PortCounters {
         };
         Some(Counter { name, value })
     }
-
-    /// Every refusal and drop, for a test to check that each is counted.
-    pub fn refused(&self) -> u64 {
-        u64::from(self.overflows)
-            + u64::from(self.timeouts)
-            + u64::from(self.unknown)
-            + u64::from(self.bad_values)
-    }
 }
 
 /// The interpreter's state besides the framer: what the client chose.

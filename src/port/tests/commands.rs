@@ -396,4 +396,7 @@ fn size() {
     // The framer's buffer and the session: a port costs this much RAM.
     let size = core::mem::size_of::<Interpreter>();
     assert!(size <= 160, "{size}");
+    // And the reply on the stack while a command is answered.
+    let reply = core::mem::size_of::<crate::port::reply::Reply>();
+    assert!(reply <= crate::port::reply::REPLY_CAPACITY + 16, "{reply}");
 }
