@@ -45,11 +45,11 @@ pub fn carry_out(
             reply.byte(b'#');
         }
         Own::Counters { group, start } => {
-            let counter = |mount: &mut _, i| match group {
+            let counter = |i| match group {
                 Counters::Port => port.get(i),
-                Counters::Mount(group) => MountPort::counter(mount, group, i),
+                Counters::Mount(group) => mount.counter(group, i),
             };
-            list(start, |i| counter(mount, i), reply);
+            list(start, counter, reply);
         }
         Own::Steps => {
             let steps = mount.step_counts();
