@@ -56,14 +56,14 @@ impl PortCounters {
 /// The interpreter's state besides the framer: what the client chose.
 #[derive(Clone, Debug)]
 struct Session {
-    pub precision: Precision,
-    pub rate: SlewRate,
+    precision: Precision,
+    rate: SlewRate,
     /// Where `:Sr#` and `:Sd#` said to sync to.
-    pub target: Equatorial,
-    pub site: Site,
-    pub telemetry: bool,
+    target: Equatorial,
+    site: Site,
+    telemetry: bool,
     /// The counters the framer does not keep.
-    pub counters: PortCounters,
+    counters: PortCounters,
 }
 
 /// One port's interpreter: 152 bytes on x86-64, its framer's buffer
@@ -99,7 +99,7 @@ impl Interpreter {
 
     /// Takes the bytes received at `now_us` (microseconds, the board's
     /// clock), carries out every command they complete and sends each reply
-    /// to `out`.
+    /// to `out`. Empty `bytes` only let a stale half command time out.
     pub fn feed(
         &mut self,
         bytes: &[u8],
@@ -148,7 +148,7 @@ impl Interpreter {
 
 impl Session {
     /// The port's counters, the framer's included.
-    pub fn counters_now(&self, framer: FramerCounters) -> PortCounters {
+    fn counters_now(&self, framer: FramerCounters) -> PortCounters {
         PortCounters {
             garbage_bytes: framer.garbage_bytes,
             overflows: framer.overflows,

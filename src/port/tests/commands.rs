@@ -378,6 +378,11 @@ fn framing_timeout() {
     b.now_us += COMMAND_TIMEOUT_US;
     assert_eq!(b.ask(":GR#"), "06:30:45#");
     assert_eq!(b.port.counters().timeouts, 2);
+    // Feeding nothing is enough to let a half command time out.
+    b.feed(b":G");
+    b.now_us += COMMAND_TIMEOUT_US;
+    b.feed(b"");
+    assert_eq!(b.port.counters().timeouts, 3);
 }
 
 #[test]
