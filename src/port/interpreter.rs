@@ -1,0 +1,322 @@
+//! The command interpreter of one port, sans-IO: bytes in, replies out to a
+//! [`ReplySink`], actions to the mount through [`MountPort`]. The transport
+//! (USB CDC, UART, a pty in the simulator) calls [`Interpreter::feed`] with
+//! whatever it received and the time; nothing here blocks, allocates or
+//! keeps more than the fixed state below.
+
+use super::command::{parse, Command, Query, Refusal, Setting, SlewRate};
+use super::coords::{Equatorial, Precision};
+use super::framer::{Frame, Framer, FramerCounters};
+use super::mount_port::{Axis, Counter, GuidePulse, MountPort, PecState};
+use super::own;
+use super::reply::{Reply, ReplySink};
+use super::site::Site;
+use super::telemetry::{self, TelemetryFrame};
+
+/// What the port received and refused, since start-up (wrapping counts).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PortCounters {
+    /// Commands understood and carried out.
+    pub commands: u32,
+    /// ACK bytes answered.
+    pub acks: u32,
+    /// Bytes outside any command, and of commands abandoned at a control
+    /// byte.
+    pub garbage_bytes: u32,
+    /// Commands longer than the framer's buffer.
+    pub overflows: u32,
+    /// Commands not ended in time.
+    pub timeouts: u32,
+    /// Complete commands we do not know.
+    pub unknown: u32,
+    /// Known commands with a malformed or out-of-range value.
+    pub bad_values: u32,
+    /// Replies cut because they did not fit (none should be: a bug).
+    pub replies_cut: u32,
+}
+
+impl PortCounters {
+    /// Counter `index` by name, for `:~Cp#`.
+    pub fn get(&self, index: usize) -> Option<Counter> {
+        let (name, value) = match index {
+            0 => ("commands", self.commands),
+            1 => ("acks", self.acks),
+            2 => ("garbage_bytes", self.garbage_bytes),
+            3 => ("overflows", self.overflows),
+            4 => ("timeouts", self.timeouts),
+            5 => ("unknown", self.unknown),
+            6 => ("bad_values", self.bad_values),
+            7 => ("replies_cut", self.replies_cut),
+            _ => return None,
+        };
+        Some(Counter { name, value })
+    }
+}
+
+/// The interpreter's state besides the framer: what the client chose.
+#[derive(Clone, Debug)]
+struct Session {
+    precision: Precision,
+    rate: SlewRate,
+    /// Where `:Sr#` and `:Sd#` said to sync to.
+    target: Equatorial,
+    site: Site,
+    telemetry: bool,
+    /// The counters the framer does not keep.
+    counters: PortCounters,
+}
+
+/// One port's interpreter: 152 bytes on x86-64, its framer's buffer
+/// included (the unit test `size` bounds it at 160).
+#[derive(Clone, Debug)]
+pub struct Interpreter {
+    framer: Framer,
+    session: Session,
+}
+
+impl Default for Interpreter {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Interpreter {
+    /// High precision (`:U#` switches), the guide rate selected (the
+    /// slowest: a `:Mn#` before any `:R?#` is a guide pulse), telemetry off.
+    pub fn new() -> Self {
+        Interpreter {
+            framer: Framer::new(),
+            session: Session {
+                precision: Precision::High,
+                rate: SlewRate::Guide,
+                target: Equatorial::default(),
+                site: Site::default(),
+                telemetry: false,
+                counters: PortCounters::default(),
+            },
+        }
+    }
+
+    /// Takes the bytes received at `now_us` (microseconds, the board's
+    /// clock), carries out every command they complete and sends each reply
+    /// to `out`. Empty `bytes` only let a stale half command time out.
+    pub fn feed(
+        &mut self,
+        bytes: &[u8],
+        now_us: u64,
+        mount: &mut impl MountPort,
+        out: &mut impl ReplySink,
+    ) {
+        self.framer.expire(now_us);
+        for &byte in bytes {
+            // Before the byte: a command's `#` changes no framer counter, and
+            // the frame borrows the framer.
+            let framer_counters = self.framer.counters();
+            match self.framer.push(byte, now_us) {
+                None => {}
+                Some(Frame::Ack) => {
+                    // Polar: an equatorial mount (Meade's `A` is alt-az).
+                    out.send(b"P");
+                    self.session.counters.acks = self.session.counters.acks.wrapping_add(1);
+                }
+                Some(Frame::Command(body)) => {
+                    let port = self.session.counters_now(framer_counters);
+                    self.session.execute(body, now_us, port, mount, out)
+                }
+            }
+        }
+    }
+
+    pub fn counters(&self) -> PortCounters {
+        self.session.counters_now(self.framer.counters())
+    }
+
+    /// Whether this port's client asked for telemetry (`:~T1#`).
+    pub fn telemetry(&self) -> bool {
+        self.session.telemetry
+    }
+
+    /// Sends a guide frame's telemetry line, if this port's client asked.
+    pub fn send_telemetry(&self, frame: &TelemetryFrame, out: &mut impl ReplySink) {
+        if self.session.telemetry {
+            let mut line = Reply::new();
+            telemetry::write(frame, &mut line);
+            out.send(line.as_bytes());
+        }
+    }
+}
+
+impl Session {
+    /// The port's counters, the framer's included.
+    fn counters_now(&self, framer: FramerCounters) -> PortCounters {
+        PortCounters {
+            garbage_bytes: framer.garbage_bytes,
+            overflows: framer.overflows,
+            timeouts: framer.timeouts,
+            ..self.counters
+        }
+    }
+
+    fn execute(
+        &mut self,
+        body: &[u8],
+        now_us: u64,
+        port: PortCounters,
+        mount: &mut impl MountPort,
+        out: &mut impl ReplySink,
+    ) {
+        let mut reply = Reply::new();
+        match parse(body) {
+            Ok(command) => {
+                self.counters.commands = self.counters.commands.wrapping_add(1);
+                self.carry_out(command, now_us, port, mount, &mut reply);
+            }
+            Err(Refusal::Unknown) => {
+                self.counters.unknown = self.counters.unknown.wrapping_add(1);
+            }
+            Err(Refusal::BadValue) => {
+                self.counters.bad_values = self.counters.bad_values.wrapping_add(1);
+            }
+            Err(Refusal::BadSetting) => {
+                self.counters.bad_values = self.counters.bad_values.wrapping_add(1);
+                reply.byte(b'0');
+            }
+        }
+        if reply.overflowed() {
+            self.counters.replies_cut = self.counters.replies_cut.wrapping_add(1);
+        }
+        if !reply.is_empty() {
+            out.send(reply.as_bytes());
+        }
+    }
+
+    fn carry_out(
+        &mut self,
+        command: Command,
+        now_us: u64,
+        port: PortCounters,
+        mount: &mut impl MountPort,
+        reply: &mut Reply,
+    ) {
+        match command {
+            Command::Get(query) => {
+                self.answer(query, now_us, mount, reply);
+                reply.byte(b'#');
+            }
+            Command::Set(setting) => self.set(setting, now_us, reply),
+            Command::TogglePrecision => self.precision = self.precision.toggled(),
+            Command::Sync => {
+                mount.sync(self.target);
+                // Any `...#` will do for the clients; OnStep's.
+                reply.text(b"N/A#");
+            }
+            // `1` + a message is the "not possible" the clients understand.
+            Command::Goto => {
+                reply.text(b"1No goto on this mount#");
+            }
+            // Not slewing: no bars.
+            Command::DistanceBars => {
+                reply.byte(b'#');
+            }
+            Command::Guide(pulse) => mount.guide(pulse),
+            Command::SelectRate(rate) => self.rate = rate,
+            Command::Move(line) => match self.rate {
+                // No duration: until its `:Q?#`, at most the longest pulse.
+                SlewRate::Guide => mount.guide(GuidePulse::longest(line)),
+                SlewRate::Manual(rate) => mount.move_at(line, rate),
+            },
+            Command::Stop(axis) => mount.stop(axis),
+            Command::StopAll => {
+                mount.stop(Axis::Ra);
+                mount.stop(Axis::Dec);
+            }
+            Command::Tracking(on) => {
+                mount.set_tracking(on);
+                reply.byte(b'1');
+            }
+            Command::Own(command) => {
+                if let Some(on) = own::carry_out(command, port, mount, reply) {
+                    self.telemetry = on;
+                }
+            }
+        }
+    }
+
+    /// The answer to a query, without its `#`.
+    fn answer(&self, query: Query, now_us: u64, mount: &mut impl MountPort, reply: &mut Reply) {
+        match query {
+            Query::Ra => mount.position().ra.write(self.precision, reply),
+            Query::Dec => mount.position().dec.write(self.precision, reply),
+            Query::ClockFormat => {
+                reply.text(b"24");
+            }
+            Query::SiteName => {
+                reply.text(b"Site");
+            }
+            // Sidereal, as a 60 Hz synchronous motor's frequency (60.164 Hz).
+            Query::TrackingRate => {
+                reply.text(if mount.status().tracking {
+                    b"60.1"
+                } else {
+                    b"00.0"
+                });
+            }
+            Query::Latitude => self.site.latitude.write(reply),
+            Query::Longitude => self.site.longitude.write(reply),
+            Query::UtcOffset => self.site.utc_offset.write(reply),
+            Query::LocalTime => self.site.time(now_us).write(reply),
+            Query::Date => self.site.date.write(reply),
+            Query::Status => status_flags(mount, reply),
+            Query::Product => {
+                reply.text(mount.identity().product.as_bytes());
+            }
+            Query::Version => {
+                reply.text(mount.identity().version.as_bytes());
+            }
+            Query::BuildDate => {
+                reply.text(mount.identity().date.as_bytes());
+            }
+            Query::BuildTime => {
+                reply.text(mount.identity().time.as_bytes());
+            }
+        }
+    }
+
+    fn set(&mut self, setting: Setting, now_us: u64, reply: &mut Reply) {
+        match setting {
+            Setting::TargetRa(ra) => self.target.ra = ra,
+            Setting::TargetDec(dec) => self.target.dec = dec,
+            Setting::UtcOffset(offset) => self.site.utc_offset = offset,
+            Setting::Latitude(latitude) => self.site.latitude = latitude,
+            Setting::Longitude(longitude) => self.site.longitude = longitude,
+            Setting::LocalTime(time) => self.site.set_time(time, now_us),
+            Setting::Date(date) => {
+                self.site.date = date;
+                // Meade's handbox answers a date with two lines after the
+                // `1`, and the clients read both.
+                reply.text(b"1Updating Planetary Data#                              #");
+                return;
+            }
+        }
+        reply.byte(b'1');
+    }
+}
+
+/// OnStep's `:GU#` flags where they apply: `n` not tracking, `N` no goto
+/// under way (always), `p` not parked (always: no park), `G` a guide pulse
+/// running, then the PEC state (`/` off, `^` learning, `~` playing).
+fn status_flags(mount: &mut impl MountPort, reply: &mut Reply) {
+    let status = mount.status();
+    if !status.tracking {
+        reply.byte(b'n');
+    }
+    reply.text(b"Np");
+    if status.guiding {
+        reply.byte(b'G');
+    }
+    reply.byte(match status.pec {
+        PecState::Off => b'/',
+        PecState::Learning => b'^',
+        PecState::Playing => b'~',
+    });
+}
