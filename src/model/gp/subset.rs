@@ -80,27 +80,13 @@ impl Subset {
             t_j += step;
         }
         copy.copy_from_slice(cov);
-        // Descending, NaN last: a total order.
-        let order = |a: &S, b: &S| {
-            if *a > *b {
-                Ordering::Less
-            } else if *a < *b {
-                Ordering::Greater
-            } else if *a == *b || (is_nan(*a) && is_nan(*b)) {
-                Ordering::Equal
-            } else if is_nan(*a) {
-                Ordering::Greater
-            } else {
-                Ordering::Less
-            }
-        };
-        let Some((threshold, above)) = nth(copy, k - 1, order) else {
+        let Some((threshold, above)) = nth(copy, k - 1, descending) else {
             return false;
         };
         let mut ties = k - above;
         let mut m = 0;
         for (j, c) in cov.iter().enumerate() {
-            let take = match order(c, &threshold) {
+            let take = match descending(c, &threshold) {
                 Ordering::Less => true,
                 Ordering::Equal if ties > 0 => {
                     ties -= 1;
@@ -182,6 +168,21 @@ fn nth<S: Copy>(
     }
 }
 
+/// Covariance descending, NaN last: a total order.
+fn descending<S: Scalar>(a: &S, b: &S) -> Ordering {
+    if *a > *b {
+        Ordering::Less
+    } else if *a < *b {
+        Ordering::Greater
+    } else if *a == *b || (is_nan(*a) && is_nan(*b)) {
+        Ordering::Equal
+    } else if is_nan(*a) {
+        Ordering::Greater
+    } else {
+        Ordering::Less
+    }
+}
+
 fn is_nan<S: Scalar>(x: S) -> bool {
     x.partial_cmp(&x).is_none()
 }
@@ -228,6 +229,30 @@ mod tests {
         assert!(subset.select(grid, kernel, centre, &mut scratch));
         let want = reference(grid, kernel, centre);
         assert_eq!(subset.cells(), &want[..], "centre {centre}");
+    }
+
+    #[test]
+    fn nth_is_the_sorted_element_with_ties_and_nan() {
+        // Many repeats and some NaNs, scrambled.
+        let values: Vec<f64> = (0..300u32)
+            .map(|i| match (i * 7919) % 23 {
+                5 => f64::NAN,
+                r => f64::from(r % 11),
+            })
+            .collect();
+        let mut sorted = values.clone();
+        sorted.sort_by(descending);
+        for k in 0..values.len() {
+            let mut v = values.clone();
+            let (x, before) = nth(&mut v, k, descending).unwrap();
+            assert_eq!(descending(&x, &sorted[k]), Ordering::Equal, "k {k}");
+            let want = sorted
+                .iter()
+                .filter(|&s| descending(s, &x) == Ordering::Less)
+                .count();
+            assert_eq!(before, want, "k {k}");
+        }
+        assert!(nth(&mut values.clone(), values.len(), descending::<f64>).is_none());
     }
 
     #[test]
