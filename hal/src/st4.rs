@@ -88,6 +88,9 @@ struct Inputs {
     allow: AllowEdge,
 }
 
+// Borrowed only inside critical sections and never across one, so a borrow
+// cannot fail; `try_borrow*` all the same, so that no borrow panic is linked
+// into the firmware.
 static INPUTS: Mutex<CriticalSectionRawMutex, RefCell<Option<Inputs>>> =
     Mutex::new(RefCell::new(None));
 static EDGES: Channel<CriticalSectionRawMutex, PinEdge, QUEUE_LEN> = Channel::new();
@@ -129,7 +132,7 @@ impl St4Edges {
     /// (true = asserted); `None` while it is not masked.
     pub fn masked_level(&self, index: u8) -> Option<bool> {
         critical_section::with(|cs| {
-            let inputs = INPUTS.borrow(cs).borrow();
+            let inputs = INPUTS.borrow(cs).try_borrow().ok()?;
             let inputs = inputs.as_ref()?;
             let i = usize::from(index);
             let masked = *inputs.masked.get(i)?;
@@ -141,8 +144,8 @@ impl St4Edges {
     /// differs from the level last reported.
     pub fn unmask(&mut self, index: u8) {
         critical_section::with(|cs| {
-            let mut inputs = INPUTS.borrow(cs).borrow_mut();
-            if let Some(inputs) = inputs.as_mut() {
+            let mut inputs = INPUTS.borrow(cs).try_borrow_mut();
+            if let Some(inputs) = inputs.as_deref_mut().ok().and_then(Option::as_mut) {
                 let i = usize::from(index);
                 if let (Some(masked), Some(&line)) = (inputs.masked.get_mut(i), inputs.exti.get(i))
                 {
@@ -155,11 +158,12 @@ impl St4Edges {
     }
 }
 
-/// Enables or masks the interrupt of EXTI line `line`.
+/// Enables or masks the interrupt of EXTI line `line` (a pin number, below
+/// 16: the mask changes nothing and spares the PAC's range assertion).
 fn set_interrupt(line: u8, enabled: bool) {
     pac::EXTI
         .imr(0)
-        .modify(|w| w.set_line(usize::from(line), enabled));
+        .modify(|w| w.set_line(usize::from(line & 15), enabled));
 }
 
 /// Configures the four ST4 inputs (pull-up, EXTI on both edges), sets the
@@ -200,13 +204,15 @@ pub fn start(pins: St4Pins, allow: AllowEdge) -> St4Edges {
                 TriggerEdge::Any,
             ),
         ];
-        INPUTS.borrow(cs).replace(Some(Inputs {
-            lines,
-            exti,
-            asserted: [false; 4],
-            masked: [false; 4],
-            allow,
-        }));
+        if let Ok(mut inputs) = INPUTS.borrow(cs).try_borrow_mut() {
+            *inputs = Some(Inputs {
+                lines,
+                exti,
+                asserted: [false; 4],
+                masked: [false; 4],
+                allow,
+            });
+        }
     });
     // embassy-stm32's init enabled every EXTI vector in the NVIC already; the
     // first scan reports the lines asserted now.
@@ -219,7 +225,9 @@ pub fn start(pins: St4Pins, allow: AllowEdge) -> St4Edges {
 fn on_exti() {
     let at_us = Instant::now().as_micros();
     critical_section::with(|cs| {
-        let mut inputs = INPUTS.borrow(cs).borrow_mut();
+        let Ok(mut inputs) = INPUTS.borrow(cs).try_borrow_mut() else {
+            return;
+        };
         let Some(inputs) = inputs.as_mut() else {
             return;
         };

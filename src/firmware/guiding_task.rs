@@ -54,7 +54,9 @@ pub static FRAMES: Channel<CriticalSectionRawMutex, FrameRecord, FRAME_QUEUE> = 
 pub static FEED_FORWARD: Signal<CriticalSectionRawMutex, FeedForward> = Signal::new();
 
 /// The ST4 edge budgets: asked by the EXTI interrupt before it queues an
-/// edge, polled by the guiding task for masked lines.
+/// edge, polled by the guiding task for masked lines. Borrowed only inside
+/// its lock and never across one, so a borrow cannot fail: `try_borrow*`
+/// keeps the borrow panics out of the firmware.
 static STORM: Mutex<CriticalSectionRawMutex, RefCell<StormGuard>> =
     Mutex::new(RefCell::new(StormGuard::new()));
 
@@ -65,19 +67,25 @@ fn line(index: u8) -> Line {
 
 /// The hal's question before it queues an edge (in the EXTI interrupt).
 pub fn allow_edge(index: u8, at_us: u64) -> bool {
-    STORM.lock(|g| g.borrow_mut().on_edge(line(index), at_us))
+    STORM.lock(|g| {
+        g.try_borrow_mut()
+            .is_ok_and(|mut g| g.on_edge(line(index), at_us))
+    })
 }
 
 /// ST4 edge storms caught since start, for the status log.
 pub fn storms() -> u32 {
-    STORM.lock(|g| g.borrow().storms())
+    STORM.lock(|g| g.try_borrow().map_or(0, |g| g.storms()))
 }
 
 /// Unmasks each masked input that the storm guard finds quiet.
 fn poll_masked(edges: &mut St4Edges, now_us: u64) {
     for index in 0..Line::ALL.len() as u8 {
         if let Some(level) = edges.masked_level(index) {
-            if STORM.lock(|g| g.borrow_mut().poll(line(index), now_us, level)) {
+            if STORM.lock(|g| {
+                g.try_borrow_mut()
+                    .is_ok_and(|mut g| g.poll(line(index), now_us, level))
+            }) {
                 edges.unmask(index);
             }
         }

@@ -36,7 +36,9 @@ impl Axle {
 
 /// Everything the step tick touches. Owned by the `TIM2` handler; the
 /// guiding task changes the rates and reads the counts in critical
-/// sections.
+/// sections. Borrowed only inside critical sections and never across one,
+/// so a borrow cannot fail: `try_borrow*` keeps the borrow panics (and their
+/// messages) out of the step tick.
 struct Stepping {
     ticker: StepTicker,
     ra: Axle,
@@ -54,7 +56,9 @@ static TICKS: AtomicU32 = AtomicU32::new(0);
 fn TIM2() {
     TICKS.fetch_add(1, Ordering::Relaxed);
     critical_section::with(|cs| {
-        let mut stepping = STEPPING.borrow(cs).borrow_mut();
+        let Ok(mut stepping) = STEPPING.borrow(cs).try_borrow_mut() else {
+            return;
+        };
         if let Some(s) = stepping.as_mut() {
             s.ticker.ack();
             s.ra.tick();
@@ -73,10 +77,9 @@ static DEC_RATE_BITS: AtomicU32 = AtomicU32::new(0);
 pub fn set_rates(rates: Rates) -> Rates {
     let set = |rate: f32, axle: fn(&mut Stepping) -> &mut Axle| {
         critical_section::with(|cs| {
-            let mut stepping = STEPPING.borrow(cs).borrow_mut();
-            stepping
-                .as_mut()
-                .map_or(0.0, |s| axle(s).stepper.set_rate(rate))
+            STEPPING.borrow(cs).try_borrow_mut().map_or(0.0, |mut s| {
+                s.as_mut().map_or(0.0, |s| axle(s).stepper.set_rate(rate))
+            })
         })
     };
     let set = Rates {
@@ -96,11 +99,10 @@ pub fn ticks() -> u32 {
 /// Steps emitted so far on (RA, Dec).
 pub fn step_counts() -> (i64, i64) {
     critical_section::with(|cs| {
-        STEPPING
-            .borrow(cs)
-            .borrow()
-            .as_ref()
-            .map_or((0, 0), |s| (s.ra.stepper.steps(), s.dec.stepper.steps()))
+        STEPPING.borrow(cs).try_borrow().map_or((0, 0), |s| {
+            s.as_ref()
+                .map_or((0, 0), |s| (s.ra.stepper.steps(), s.dec.stepper.steps()))
+        })
     })
 }
 
@@ -109,7 +111,10 @@ pub fn step_counts() -> (i64, i64) {
 pub fn start(ticker: StepTicker, ra: StepAxis, dec: StepAxis, mount: &Mount) {
     let tick_hz = mount.config().step_tick_hz;
     STEPPING.lock(|s| {
-        s.replace(Some(Stepping {
+        let Ok(mut s) = s.try_borrow_mut() else {
+            return;
+        };
+        *s = Some(Stepping {
             ticker,
             ra: Axle {
                 stepper: AxisStepper::new(mount.max_ra_steps_per_s(), tick_hz),
@@ -119,10 +124,13 @@ pub fn start(ticker: StepTicker, ra: StepAxis, dec: StepAxis, mount: &Mount) {
                 stepper: AxisStepper::new(mount.max_dec_steps_per_s(), tick_hz),
                 pins: dec,
             },
-        }))
+        });
     });
     critical_section::with(|cs| {
-        if let Some(s) = STEPPING.borrow(cs).borrow_mut().as_mut() {
+        let Ok(mut stepping) = STEPPING.borrow(cs).try_borrow_mut() else {
+            return;
+        };
+        if let Some(s) = stepping.as_mut() {
             s.ticker.start();
             s.ra.pins.set_enabled(true);
             s.dec.pins.set_enabled(true);

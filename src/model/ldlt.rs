@@ -6,6 +6,8 @@
 //! scalars (20,200 bytes in `f32`). After [`Ldlt::factor`] the strict lower
 //! part holds `L` (unit diagonal implied) and the diagonal holds `D`.
 
+use core::ops::Range;
+
 use crate::model::numeric::dot::{dot, BLOCK};
 use crate::model::numeric::scalar::Scalar;
 
@@ -16,6 +18,10 @@ pub enum FactorError {
     /// (numerically) positive definite. The caller falls back to reactive
     /// guiding for this frame.
     NotPositiveDefinite { row: usize },
+    /// A row lay outside the packed storage. Cannot happen (`n <= CAP` and
+    /// `TRI` is checked against `CAP`); an error instead of a bounds-check
+    /// panic, so that the firmware holds none.
+    Storage,
 }
 
 /// Packed lower triangle of an `n x n` symmetric matrix, `n <= CAP`.
@@ -51,10 +57,11 @@ impl<S: Scalar, const CAP: usize, const TRI: usize> Ldlt<S, CAP, TRI> {
         self.n = n.min(CAP);
     }
 
-    /// Row `i`, columns `0..=i`, for filling the matrix before factoring.
+    /// Row `i`, columns `0..=i`, for filling the matrix before factoring;
+    /// empty for `i >= CAP`.
     pub fn row_mut(&mut self, i: usize) -> &mut [S] {
         let s = row_start(i);
-        &mut self.a[s..s + i + 1]
+        self.a.get_mut(s..s + i + 1).unwrap_or_default()
     }
 
     /// Factor in place: afterwards row `i` holds `L[i][0..i]` and `D[i]`.
@@ -65,19 +72,35 @@ impl<S: Scalar, const CAP: usize, const TRI: usize> Ldlt<S, CAP, TRI> {
     /// block is then read once for all of its rows. The dot products are
     /// nearly all of the cost, and this takes their loads from two per
     /// multiply-add towards one.
+    ///
+    /// Rows are reached through checked splits (a failed one is
+    /// [`FactorError::Storage`]), so that no bounds check can panic.
     pub fn factor(&mut self) -> Result<(), FactorError> {
-        let n = self.n;
+        let n = self.n.min(CAP);
         let mut i = 0;
         while i < n {
             let rows = BLOCK.min(n - i);
+            let (head, tail) = self
+                .a
+                .split_at_mut_checked(row_start(i))
+                .ok_or(FactorError::Storage)?;
             if rows == BLOCK {
+                let (r0, rest) = tail
+                    .split_at_mut_checked(i + 1)
+                    .ok_or(FactorError::Storage)?;
+                let (r1, rest) = rest
+                    .split_at_mut_checked(i + 2)
+                    .ok_or(FactorError::Storage)?;
+                let (r2, rest) = rest
+                    .split_at_mut_checked(i + 3)
+                    .ok_or(FactorError::Storage)?;
+                let r3 = rest.get_mut(..i + 4).ok_or(FactorError::Storage)?;
+                // Row j of L (columns 0..j), then its diagonal, in order.
+                let mut above: &[S] = head;
                 for j in 0..i {
-                    let rj = row_start(j);
-                    let (head, tail) = self.a.split_at_mut(row_start(i));
-                    let lj = &head[rj..rj + j];
-                    let (r0, rest) = tail.split_at_mut(i + 1);
-                    let (r1, rest) = rest.split_at_mut(i + 2);
-                    let (r2, r3) = rest.split_at_mut(i + 3);
+                    let (lj, rest) = above.split_at_checked(j + 1).ok_or(FactorError::Storage)?;
+                    above = rest;
+                    let lj = &lj[..j];
                     let d = S::dot_rows([&r0[..j], &r1[..j], &r2[..j], &r3[..j]], lj);
                     r0[j] -= d[0];
                     r1[j] -= d[1];
@@ -86,24 +109,12 @@ impl<S: Scalar, const CAP: usize, const TRI: usize> Ldlt<S, CAP, TRI> {
                 }
             } else {
                 for r in 0..rows {
-                    let ri = row_start(i + r);
-                    for j in 0..i {
-                        let rj = row_start(j);
-                        let (head, tail) = self.a.split_at_mut(ri);
-                        let d = dot(&tail[..j], &head[rj..rj + j]);
-                        tail[j] -= d;
-                    }
+                    self.update_row(i + r, 0..i)?;
                 }
             }
             // Inside the block: row i + r needs rows i..i + r finished.
             for r in 0..rows {
-                let ri = row_start(i + r);
-                for j in i..i + r {
-                    let rj = row_start(j);
-                    let (head, tail) = self.a.split_at_mut(ri);
-                    let d = dot(&tail[..j], &head[rj..rj + j]);
-                    tail[j] -= d;
-                }
+                self.update_row(i + r, i..i + r)?;
                 self.finish_row(i + r)?;
             }
             i += rows;
@@ -111,22 +122,43 @@ impl<S: Scalar, const CAP: usize, const TRI: usize> Ldlt<S, CAP, TRI> {
         Ok(())
     }
 
+    /// `w_j -= Σ_{k<j} w_k L_jk` in row `i` for the columns `cols` (< i).
+    fn update_row(&mut self, i: usize, cols: Range<usize>) -> Result<(), FactorError> {
+        let (head, tail) = self
+            .a
+            .split_at_mut_checked(row_start(i))
+            .ok_or(FactorError::Storage)?;
+        for j in cols {
+            let rj = row_start(j);
+            let lj = head.get(rj..rj + j).ok_or(FactorError::Storage)?;
+            let (w, rest) = tail.split_at_mut_checked(j).ok_or(FactorError::Storage)?;
+            let wj = rest.first_mut().ok_or(FactorError::Storage)?;
+            *wj -= dot(w, lj);
+        }
+        Ok(())
+    }
+
     /// Turn row `i`'s `w_j` into `L_ij` and compute `D_i`.
     fn finish_row(&mut self, i: usize) -> Result<(), FactorError> {
-        let ri = row_start(i);
-        let mut d = self.a[ri + i];
-        for j in 0..i {
-            let dj = self.a[row_start(j) + j];
-            let w = self.a[ri + j];
+        let (head, tail) = self
+            .a
+            .split_at_mut_checked(row_start(i))
+            .ok_or(FactorError::Storage)?;
+        let (w, rest) = tail.split_at_mut_checked(i).ok_or(FactorError::Storage)?;
+        let diag = rest.first_mut().ok_or(FactorError::Storage)?;
+        let mut d = *diag;
+        for (j, wj) in w.iter_mut().enumerate() {
+            let dj = *head.get(row_start(j) + j).ok_or(FactorError::Storage)?;
+            let w = *wj;
             let l = w / dj;
             d -= l * w;
-            self.a[ri + j] = l;
+            *wj = l;
         }
         // `!(d > 0)` also catches NaN.
         if !(d > S::ZERO) || !d.is_finite() {
             return Err(FactorError::NotPositiveDefinite { row: i });
         }
-        self.a[ri + i] = d;
+        *diag = d;
         Ok(())
     }
 
@@ -153,30 +185,33 @@ impl<S: Scalar, const CAP: usize, const TRI: usize> Ldlt<S, CAP, TRI> {
 
     /// Solve for three right-hand sides at once (the inference's `y`, `1`
     /// and `t`): each element of `L` is loaded once for all three.
-    pub fn solve3(&self, x: &mut [S], y: &mut [S], z: &mut [S]) {
+    pub fn solve3(&self, x: &mut [S], y: &mut [S], z: &mut [S]) -> Result<(), FactorError> {
         let n = self.n.min(x.len()).min(y.len()).min(z.len());
+        let l = |i: usize| {
+            let ri = row_start(i);
+            self.a.get(ri..ri + i).ok_or(FactorError::Storage)
+        };
         // L u = b, row by row.
         for i in 0..n {
-            let ri = row_start(i);
-            let s = S::dot3(&self.a[ri..ri + i], &x[..i], &y[..i], &z[..i]);
+            let s = S::dot3(l(i)?, &x[..i], &y[..i], &z[..i]);
             x[i] -= s[0];
             y[i] -= s[1];
             z[i] -= s[2];
         }
         for i in 0..n {
-            let d = self.a[row_start(i) + i];
+            let d = *self.a.get(row_start(i) + i).ok_or(FactorError::Storage)?;
             x[i] /= d;
             y[i] /= d;
             z[i] /= d;
         }
         // Lᵀ u = v, column-oriented so that rows of L are read contiguously.
         for i in (0..n).rev() {
-            let ri = row_start(i);
             let (xh, xt) = x.split_at_mut(i);
             let (yh, yt) = y.split_at_mut(i);
             let (zh, zt) = z.split_at_mut(i);
-            S::sub_scaled3(&self.a[ri..ri + i], [xh, yh, zh], [xt[0], yt[0], zt[0]]);
+            S::sub_scaled3(l(i)?, [xh, yh, zh], [xt[0], yt[0], zt[0]]);
         }
+        Ok(())
     }
 }
 

@@ -46,6 +46,8 @@
 //! direction is held back by one tick (the phase loses less than half a
 //! step; only in that case).
 
+use crate::model::numeric::clamp;
+
 /// One axis: a 32-bit phase accumulator advanced once per timer tick; a
 /// step is emitted when it wraps.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -109,7 +111,7 @@ impl PhaseAccumulator {
         let rate = if steps_per_s.is_nan() {
             0.0
         } else {
-            steps_per_s.clamp(-limit, limit)
+            clamp(steps_per_s, -limit, limit)
         };
         let increment = if tick_hz == 0 {
             0

@@ -25,6 +25,9 @@ pub(super) fn fill<S: Scalar>(
         for (r, &cj) in row.iter_mut().zip(cells) {
             *r = table[ci.wrapping_sub(cj) as usize & (GRID_CELLS - 1)];
         }
-        row[i] += var_i;
+        // The diagonal: row i is i + 1 long.
+        if let Some(d) = row.last_mut() {
+            *d += var_i;
+        }
     }
 }

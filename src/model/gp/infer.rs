@@ -94,9 +94,8 @@ impl<S: Scalar> Gp<S> {
         };
         gram::fill(&mut self.chol, grid, cells, table);
         self.chol.factor().map_err(InferError::Factor)?;
-        self.slope = self
-            .trend
-            .solve(&self.chol, grid, cells, centre, &mut self.weights[..n])?;
+        let weights = self.weights.get_mut(..n).ok_or(InferError::Degenerate)?;
+        self.slope = self.trend.solve(&self.chol, grid, cells, centre, weights)?;
         self.valid = true;
         Ok(())
     }
@@ -120,10 +119,10 @@ impl<S: Scalar> Gp<S> {
         let d1 = S::from_f64(x1 - t_newest);
         let cell = S::from_f64(CELL_S);
         let mut change = S::ZERO;
-        for (i, &c) in self.subset.cells().iter().enumerate() {
+        for (&c, &w) in self.subset.cells().iter().zip(&self.weights) {
             let back = S::from_usize(newest - c as usize) * cell;
             let dk = kernel.projection(d1 + back) - kernel.projection(d0 + back);
-            change += dk * self.weights[i];
+            change += dk * w;
         }
         change + self.slope * S::from_f64(x1 - x0)
     }

@@ -27,21 +27,21 @@ pub(super) fn build<'a, S: Scalar, const N: usize>(
     // runs are one interval: the entries that occur are marked run pair by
     // run pair, and evaluated in one pass.
     let mut runs = [(0u16, 0u16); SUBSET];
-    let mut n_runs = 0;
+    let mut n_runs: usize = 0;
     for &c in cells {
-        match runs[..n_runs].last_mut() {
+        match n_runs.checked_sub(1).and_then(|last| runs.get_mut(last)) {
             Some(run) if run.1 + 1 == c => run.1 = c,
             _ => {
-                runs[n_runs] = (c, c);
+                *runs.get_mut(n_runs)? = (c, c);
                 n_runs += 1;
             }
         }
     }
-    let runs = &runs[..n_runs];
+    let runs = runs.get(..n_runs)?;
     // Used entries are marked zero, then evaluated; unused ones stay -1.
     lags.fill(-S::ONE);
     for (a, &(a0, a1)) in runs.iter().enumerate() {
-        for &(b0, b1) in &runs[..a] {
+        for &(b0, b1) in runs.iter().take(a) {
             if let Some(used) = lags.get_mut((a0 - b1) as usize..=(a1 - b0) as usize) {
                 used.fill(S::ZERO);
             }

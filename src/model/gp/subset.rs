@@ -1,6 +1,7 @@
 //! The subset of the grid an inference uses: the [`SUBSET`] cells most
 //! correlated with the prediction point under the full kernel.
 
+use core::cell::Cell;
 use core::cmp::Ordering;
 
 use crate::model::gp::grid::{Grid, CELL_S};
@@ -27,7 +28,7 @@ impl Subset {
     }
 
     pub(super) fn cells(&self) -> &[u16] {
-        &self.cells[..self.n]
+        self.cells.get(..self.n).unwrap_or(&[])
     }
 
     /// Choose the cells with the largest full-kernel covariance to `centre`;
@@ -37,10 +38,10 @@ impl Subset {
     ///
     /// The members are exactly the `SUBSET` first cells in the order
     /// (covariance descending, cell ascending), found without a heap: the
-    /// covariances go to `scratch`, a copy is partitioned around the
-    /// `SUBSET`-th (`select_nth_unstable_by`, O(cells)), and one pass in
-    /// cell order takes every cell above that threshold and, of the cells
-    /// equal to it, the oldest ones, ascending as they come.
+    /// covariances go to `scratch`, the `SUBSET`-th of them is found in a
+    /// copy ([`nth`], O(cells)), and one pass in cell order takes every cell
+    /// above that threshold and, of the cells equal to it, the oldest ones,
+    /// ascending as they come.
     // Inline in `Gp::infer`, its one caller, as before the split: out of
     // line the Cortex-M4 bench (guide-sim bench) measured more instructions
     // a frame.
@@ -61,11 +62,12 @@ impl Subset {
             }
             return true;
         }
-        if scratch.len() < 2 * total {
+        let Some((cov, rest)) = scratch.split_at_mut_checked(total) else {
             return false;
-        }
-        let (cov, rest) = scratch.split_at_mut(total);
-        let copy = &mut rest[..total];
+        };
+        let Some(copy) = rest.get_mut(..total) else {
+            return false;
+        };
         let centre_s = S::from_f64(centre);
         // Cell times in S, stepping 5 s from the oldest: exact (multiples of
         // 2.5 s; in f32 up to 2^23 s), so each equals
@@ -78,28 +80,13 @@ impl Subset {
             t_j += step;
         }
         copy.copy_from_slice(cov);
-        // Descending, NaN last: a total order.
-        let order = |a: &S, b: &S| {
-            if *a > *b {
-                Ordering::Less
-            } else if *a < *b {
-                Ordering::Greater
-            } else if *a == *b || (is_nan(*a) && is_nan(*b)) {
-                Ordering::Equal
-            } else if is_nan(*a) {
-                Ordering::Greater
-            } else {
-                Ordering::Less
-            }
+        let Some((threshold, above)) = nth(copy, k - 1, descending) else {
+            return false;
         };
-        let (above, &mut threshold, _) = copy.select_nth_unstable_by(k - 1, order);
-        let mut ties = k - above
-            .iter()
-            .filter(|c| order(c, &threshold) == Ordering::Less)
-            .count();
+        let mut ties = k - above;
         let mut m = 0;
         for (j, c) in cov.iter().enumerate() {
-            let take = match order(c, &threshold) {
+            let take = match descending(c, &threshold) {
                 Ordering::Less => true,
                 Ordering::Equal if ties > 0 => {
                     ties -= 1;
@@ -115,6 +102,84 @@ impl Subset {
             }
         }
         true
+    }
+}
+
+/// The element at `k` of `v` sorted by `order` (a total order) and the
+/// number of elements strictly before it, by quickselect; `v` is permuted.
+/// None only if `k >= v.len()`.
+///
+/// Each round takes the middle element as the pivot and moves the elements
+/// before it to the front (Lomuto), counting those equal to it; the side
+/// that holds `k` is the next round's. Written with `Cell`s and iterators,
+/// unlike core's `select_nth_unstable_by`, so that no bounds check and no
+/// panic is left in the firmware. The cells come in time order, in which the
+/// covariance mostly rises towards the centre, so the middle is a fair
+/// pivot.
+fn nth<S: Copy>(
+    mut v: &mut [S],
+    mut k: usize,
+    order: impl Fn(&S, &S) -> Ordering,
+) -> Option<(S, usize)> {
+    // Elements dropped in earlier rounds as before every one left.
+    let mut dropped_before = 0;
+    loop {
+        let pivot = *v.get(v.len() / 2)?;
+        let cells = Cell::from_mut(&mut *v).as_slice_of_cells();
+        let mut front = cells.iter();
+        let (mut before, mut equal) = (0, 0);
+        for x in cells {
+            match order(&x.get(), &pivot) {
+                Ordering::Less => {
+                    if let Some(f) = front.next() {
+                        let y = f.get();
+                        f.set(x.get());
+                        x.set(y);
+                    }
+                    before += 1;
+                }
+                Ordering::Equal => equal += 1,
+                Ordering::Greater => {}
+            }
+        }
+        if k < before {
+            v = core::mem::take(&mut v).get_mut(..before)?;
+        } else if k < before + equal {
+            return Some((pivot, dropped_before + before));
+        } else {
+            // The elements after the pivot, compacted to the front of the
+            // rest (their order does not matter).
+            let rest = core::mem::take(&mut v).get_mut(before..)?;
+            let cells = Cell::from_mut(&mut *rest).as_slice_of_cells();
+            let mut front = cells.iter();
+            let mut after = 0;
+            for x in cells {
+                if order(&x.get(), &pivot) == Ordering::Greater {
+                    if let Some(f) = front.next() {
+                        f.set(x.get());
+                    }
+                    after += 1;
+                }
+            }
+            dropped_before += before + equal;
+            k -= before + equal;
+            v = rest.get_mut(..after)?;
+        }
+    }
+}
+
+/// Covariance descending, NaN last: a total order.
+fn descending<S: Scalar>(a: &S, b: &S) -> Ordering {
+    if *a > *b {
+        Ordering::Less
+    } else if *a < *b {
+        Ordering::Greater
+    } else if *a == *b || (is_nan(*a) && is_nan(*b)) {
+        Ordering::Equal
+    } else if is_nan(*a) {
+        Ordering::Greater
+    } else {
+        Ordering::Less
     }
 }
 
@@ -164,6 +229,30 @@ mod tests {
         assert!(subset.select(grid, kernel, centre, &mut scratch));
         let want = reference(grid, kernel, centre);
         assert_eq!(subset.cells(), &want[..], "centre {centre}");
+    }
+
+    #[test]
+    fn nth_is_the_sorted_element_with_ties_and_nan() {
+        // Many repeats and some NaNs, scrambled.
+        let values: Vec<f64> = (0..300u32)
+            .map(|i| match (i * 7919) % 23 {
+                5 => f64::NAN,
+                r => f64::from(r % 11),
+            })
+            .collect();
+        let mut sorted = values.clone();
+        sorted.sort_by(descending);
+        for k in 0..values.len() {
+            let mut v = values.clone();
+            let (x, before) = nth(&mut v, k, descending).unwrap();
+            assert_eq!(descending(&x, &sorted[k]), Ordering::Equal, "k {k}");
+            let want = sorted
+                .iter()
+                .filter(|&s| descending(s, &x) == Ordering::Less)
+                .count();
+            assert_eq!(before, want, "k {k}");
+        }
+        assert!(nth(&mut values.clone(), values.len(), descending::<f64>).is_none());
     }
 
     #[test]

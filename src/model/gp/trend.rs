@@ -42,10 +42,14 @@ impl<S: Scalar> Trend<S> {
         weights: &mut [S],
     ) -> Result<S, InferError> {
         let n = cells.len();
-        let (s0, s1) = (&mut self.s0[..n], &mut self.s1[..n]);
+        let (Some(s0), Some(s1), Some(&first)) =
+            (self.s0.get_mut(..n), self.s1.get_mut(..n), cells.first())
+        else {
+            return Err(InferError::Degenerate);
+        };
         // Right-hand sides: y (less a constant, which the trend absorbs),
         // the constant and the time of the trend basis.
-        let y_ref = grid.cell(cells[0] as usize).0;
+        let y_ref = grid.cell(first as usize).0;
         let inv_tau = S::from_f64(1.0 / TREND_TIME_S);
         let centre_s = S::from_f64(centre);
         // Cell times as in the selection: the oldest's plus a multiple of
@@ -61,20 +65,21 @@ impl<S: Scalar> Trend<S> {
         }
         // t' of each member is needed again after the solves.
         let mut t = [S::ZERO; SUBSET];
-        t[..n].copy_from_slice(s1);
-        chol.solve3(weights, s0, s1);
+        let t = &mut t[..n];
+        t.copy_from_slice(s1);
+        chol.solve3(weights, s0, s1).map_err(InferError::Factor)?;
 
         let mut f00 = S::ZERO;
         for &x in s0.iter() {
             f00 += x;
         }
-        let f01 = dot(&t[..n], s0);
-        let f11 = dot(&t[..n], s1);
+        let f01 = dot(t, s0);
+        let f11 = dot(t, s1);
         let mut b0 = S::ZERO;
         for &x in weights.iter() {
             b0 += x;
         }
-        let b1 = dot(&t[..n], weights);
+        let b1 = dot(t, weights);
         let det = f00 * f11 - f01 * f01;
         if !(det > S::ZERO) {
             return Err(InferError::Degenerate);

@@ -10,3 +10,19 @@ pub mod scalar;
 pub mod vfp;
 
 pub use scalar::Scalar;
+
+/// `x` limited to `[lo, hi]`, as `f32::clamp`/`f64::clamp` for `lo <= hi`
+/// (NaN `x` passes through), but without their `assert!(lo <= hi)`: that
+/// assertion formats both bounds, which pulls core's float formatting and a
+/// panic into the firmware wherever the bounds are not constants. Bounds in
+/// the wrong order (or NaN) give some value in between instead of a panic.
+#[inline(always)]
+pub fn clamp<T: PartialOrd>(x: T, lo: T, hi: T) -> T {
+    if x < lo {
+        lo
+    } else if x > hi {
+        hi
+    } else {
+        x
+    }
+}

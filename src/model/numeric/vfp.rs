@@ -68,10 +68,13 @@ pub fn dot_rows(rows: [&[f32]; BLOCK], c: &[f32]) -> [f32; BLOCK] {
         }
     }
     // The last n % 4 elements continue the same sums, as the portable code
-    // does.
-    for k in 4 * blocks..n {
-        for (a, row) in acc.iter_mut().zip(&rows) {
-            *a += row[k] * c[k];
+    // does (each sum in the same order). Checked slices, as indexing
+    // `row[k]` kept a bounds check.
+    let tail = 4 * blocks..n;
+    let c_tail = c.get(tail.clone()).unwrap_or(&[]);
+    for (a, row) in acc.iter_mut().zip(&rows) {
+        for (&x, &ck) in row.get(tail.clone()).unwrap_or(&[]).iter().zip(c_tail) {
+            *a += x * ck;
         }
     }
     acc

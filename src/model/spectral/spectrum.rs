@@ -95,7 +95,7 @@ impl<'a, S: Scalar> Spectrum<'a, S> {
             let hamming = S::from_f64(0.54) - S::from_f64(0.46) * (two_pi_over * i_s).cos();
             *x = detrended * hamming;
         }
-        for x in buf[n..].iter_mut() {
+        for x in buf.iter_mut().skip(n) {
             *x = S::ZERO;
         }
         power_spectrum(buf);

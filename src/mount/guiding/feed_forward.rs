@@ -2,6 +2,7 @@
 //! past its horizon, faded out after the guider falls silent.
 
 use super::{GuidingCounters, FADE_FRAMES};
+use crate::model::numeric::clamp;
 use crate::mount::frame::FeedForward;
 
 pub(super) struct FeedForwardState {
@@ -49,7 +50,7 @@ impl FeedForwardState {
         let mut ff = ff;
         if ff.rate_arcsec_per_s.abs() > limit {
             counters.feed_forward_limited = counters.feed_forward_limited.saturating_add(1);
-            ff.rate_arcsec_per_s = ff.rate_arcsec_per_s.clamp(-limit, limit);
+            ff.rate_arcsec_per_s = clamp(ff.rate_arcsec_per_s, -limit, limit);
         }
         self.installed = ff;
         self.active = true;

@@ -105,6 +105,7 @@ mod framer;
 #[cfg(test)]
 mod tests;
 
+use crate::model::numeric::clamp;
 use crate::mount::config::{Mount, SIDEREAL_ARCSEC_PER_S};
 use crate::mount::frame::{FeedForward, Frame, Rates};
 use crate::mount::st4::{Axis, Direction, St4Event};
@@ -330,16 +331,16 @@ impl Guiding {
         let guide = self.ra_pulse.map_or(0.0, |(d, _)| d.sign()) * self.ra_guide_sps;
         let ra = (sidereal_sps + guide as f64 + ff_sps) as f32;
         let ra_clamped = if ra.is_finite() {
-            ra.clamp(0.0, self.max_ra_sps)
+            clamp(ra, 0.0, self.max_ra_sps)
         } else {
-            (sidereal_sps as f32).clamp(0.0, self.max_ra_sps)
+            clamp(sidereal_sps as f32, 0.0, self.max_ra_sps)
         };
         if ra_clamped != ra {
             self.counters.ra_clamped = self.counters.ra_clamped.saturating_add(1);
         }
         let dec = self.dec_pulse.map_or(0.0, |(d, _)| d.sign()) * self.dec_guide_sps;
         let dec_clamped = if dec.is_finite() {
-            dec.clamp(-self.max_dec_sps, self.max_dec_sps)
+            clamp(dec, -self.max_dec_sps, self.max_dec_sps)
         } else {
             0.0
         };

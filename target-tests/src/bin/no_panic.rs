@@ -1,0 +1,83 @@
+//! Link-time proof that the model's entry points, as the firmware calls
+//! them, hold no panic path on the target (the "panic-never" technique).
+//!
+//! The panic handler calls `model_code_may_panic`, a function defined
+//! nowhere. The linker drops unreferenced code, so the build links only if
+//! no panic call survives optimisation in anything this binary runs:
+//! `Guider<f32, 2>`'s `frame`, `observe`, `dark_frame` and `dithered` on
+//! inputs the compiler cannot see through (`black_box`). A link error
+//! naming `model_code_may_panic` means a panic path is back; the firmware's
+//! own count (`panic_sites` in test.sh) shows where.
+//!
+//! Only `--release` builds link (a debug build keeps every check).
+//! `cargo run --release --bin no_panic` also runs the frames in QEMU (about
+//! half an hour of guiding, so that the fit, the spectrum and the stage
+//! discovery all run) and exits 0.
+//!
+//! Not covered: `mount::learner::Learner::learn`, whose `f64::clamp` still
+//! panics on bounds out of order (with formatted floats).
+#![no_std]
+#![no_main]
+
+use core::hint::black_box;
+use cortex_m_rt::entry;
+use cortex_m_semihosting::{debug, hio};
+use mkgp_mount::model::guider::{Guider, GuiderConfig};
+
+extern "C" {
+    /// Deliberately undefined: see the module documentation.
+    fn model_code_may_panic() -> !;
+}
+
+/// Seconds between frames.
+const DT: f32 = 2.0;
+/// Frames to run: 1,000 frames of 2 s.
+const FRAMES: u32 = 1000;
+
+/// A gear error the compiler cannot fold: a triangle wave of 288 s period
+/// and 5 px amplitude (no libm: this binary links nothing it does not test).
+fn gear_error(t: f32) -> f32 {
+    let phase = t / 288.0 - (t / 288.0) as u32 as f32;
+    20.0 * (phase - 0.5).abs() - 5.0
+}
+
+#[entry]
+fn main() -> ! {
+    let mut pc: Guider<f32, 2> = Guider::new(GuiderConfig::default());
+    let mut mount: Guider<f32, 2> = Guider::new(GuiderConfig::default());
+    let mut applied = 0.0f32;
+    let mut sum = 0.0f32;
+    for k in 0..FRAMES {
+        let t = black_box(k as f32 * DT);
+        let input = black_box(gear_error(t) - applied);
+        let (snr, dt) = black_box((10.0f32, DT));
+        // PC-guider style, with a dark frame and a dither now and then.
+        let control = match k % 100 {
+            50 => pc.dark_frame(t as f64, dt),
+            75 => {
+                pc.dithered(black_box(1.5), black_box(7.5));
+                0.0
+            }
+            _ => pc.frame(t as f64, input, snr, dt),
+        };
+        applied += control;
+        // Mount side (the learner's calls), with unmeasured frames.
+        let gear = (k % 37 != 0).then_some(gear_error(t) as f64);
+        sum += mount.observe(t as f64, gear, 0.0, snr, dt);
+    }
+    black_box((applied, sum));
+    if let Ok(mut out) = hio::hstdout() {
+        // Nothing to do if the host does not take it: the exit status says it.
+        let _ = out.write_all(b"no_panic: ran the guider's entry points\n");
+    }
+    debug::exit(debug::EXIT_SUCCESS);
+    loop {
+        cortex_m::asm::bkpt();
+    }
+}
+
+#[panic_handler]
+fn panic(_: &core::panic::PanicInfo) -> ! {
+    // SAFETY: never linked; reaching this line would be a link error.
+    unsafe { model_code_may_panic() }
+}
