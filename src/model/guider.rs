@@ -12,9 +12,12 @@
 //! simulator applies it as `U += control`; INDIGO reports `-control` as its
 //! "correction".
 
+use core::mem::MaybeUninit;
+
 use crate::model::gp::grid::{Grid, Push, CELL_S, GRID_CELLS};
 use crate::model::gp::infer::Gp;
 use crate::model::gp::kernel::Kernel;
+use crate::model::in_place::{build, fill, uninit_field};
 use crate::model::numeric::scalar::Scalar;
 use crate::model::spectral::discovery::Discovery;
 use crate::model::spectral::fft::FFT_LEN;
@@ -179,6 +182,12 @@ fn measurement_variance(snr: f64) -> f64 {
 
 impl<S: Scalar, const N: usize> Guider<S, N> {
     pub fn new(config: GuiderConfig<S>) -> Self {
+        build(|slot| Self::init(slot, config))
+    }
+
+    /// [`new`](Self::new) in place, e.g. into a static: no temporary copy
+    /// of the ~55 KiB on the stack (`crate::model::in_place`).
+    pub fn init(slot: &mut MaybeUninit<Self>, config: GuiderConfig<S>) -> &mut Self {
         let trackers = [PeriodTracker::new(config.prior_period_s); N];
         let mut gates = [0.0; N];
         gates[0] = 1.0;
@@ -187,31 +196,31 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             s.checked_sub(1)
                 .and_then(|i| config.stage_seeds_s.get(i).copied().flatten())
         });
-        Self {
-            config,
-            grid: Grid::new(),
-            scratch: [S::ZERO; FFT_LEN],
-            peaks_stale: true,
-            gp: Gp::new(),
-            kernel: Kernel::new(&periods, &gates),
-            trackers,
-            gates,
-            discovery: Discovery::new(seeds),
-            worm_peak_s: None,
-            frames: 0,
-            start_time: 0.0,
-            last_time: 0.0,
-            held_time: None,
-            sum_control: 0.0,
-            recent_controls: [S::ZERO; 2],
-            last_prediction_end: None,
-            prediction: S::ZERO,
-            dither_offset: 0.0,
-            dither_frames_left: 0,
-            learning_progress: 0.0,
-            blend: 0.0,
-            faults: Faults::default(),
-        }
+        uninit_field!(slot, config).write(config);
+        Grid::init(uninit_field!(slot, grid));
+        fill(uninit_field!(slot, scratch), S::ZERO);
+        uninit_field!(slot, peaks_stale).write(true);
+        Gp::init(uninit_field!(slot, gp));
+        uninit_field!(slot, kernel).write(Kernel::new(&periods, &gates));
+        uninit_field!(slot, trackers).write(trackers);
+        uninit_field!(slot, gates).write(gates);
+        uninit_field!(slot, discovery).write(Discovery::new(seeds));
+        uninit_field!(slot, worm_peak_s).write(None);
+        uninit_field!(slot, frames).write(0);
+        uninit_field!(slot, start_time).write(0.0);
+        uninit_field!(slot, last_time).write(0.0);
+        uninit_field!(slot, held_time).write(None);
+        uninit_field!(slot, sum_control).write(0.0);
+        uninit_field!(slot, recent_controls).write([S::ZERO; 2]);
+        uninit_field!(slot, last_prediction_end).write(None);
+        uninit_field!(slot, prediction).write(S::ZERO);
+        uninit_field!(slot, dither_offset).write(0.0);
+        uninit_field!(slot, dither_frames_left).write(0);
+        uninit_field!(slot, learning_progress).write(0.0);
+        uninit_field!(slot, blend).write(0.0);
+        uninit_field!(slot, faults).write(Faults::default());
+        // SAFETY: all 23 fields are written.
+        unsafe { slot.assume_init_mut() }
     }
 
     /// Forget the data (not the learned periods, nor the fault counters).

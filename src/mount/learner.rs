@@ -7,7 +7,10 @@
 //! and runs in a task of lower priority than ST4 and stepping, once per
 //! frame.
 
+use core::mem::MaybeUninit;
+
 use crate::model::guider::{Guider, GuiderConfig, DITHER_FRAMES};
+use crate::model::in_place::{build, uninit_field};
 use crate::mount::config::Mount;
 use crate::mount::frame::{FeedForward, Frame, FrameKind};
 
@@ -42,26 +45,44 @@ impl<const N: usize> Learner<N> {
     /// The model with the library's defaults, the worm period of the mount
     /// as its prior period.
     pub fn new(mount: &Mount) -> Self {
-        let c = mount.config();
-        let config = GuiderConfig::<f32> {
-            prior_period_s: c.worm_period_s as f64,
-            control_gain: c.guider_aggressiveness,
-            ..GuiderConfig::default()
-        };
-        Self::with_config(mount, config)
+        Self::with_config(mount, Self::default_config(mount))
+    }
+
+    /// [`new`](Self::new) in place, e.g. into the firmware's static: the
+    /// model (~55 KiB) is written where it lives, with no temporary copy on
+    /// the stack.
+    pub fn init<'a>(slot: &'a mut MaybeUninit<Self>, mount: &Mount) -> &'a mut Self {
+        Self::init_with_config(slot, mount, Self::default_config(mount))
     }
 
     /// The model with another configuration (the control and prediction
     /// gains are not used: the learner only observes).
     pub fn with_config(mount: &Mount, config: GuiderConfig<f32>) -> Self {
+        build(|slot| Self::init_with_config(slot, mount, config))
+    }
+
+    /// [`with_config`](Self::with_config) in place.
+    pub fn init_with_config<'a>(
+        slot: &'a mut MaybeUninit<Self>,
+        mount: &Mount,
+        config: GuiderConfig<f32>,
+    ) -> &'a mut Self {
+        Guider::init(uninit_field!(slot, guider), config);
+        uninit_field!(slot, snr).write(0.0);
+        uninit_field!(slot, cadence_s).write(mount.config().guide_cadence_s);
+        uninit_field!(slot, last_gear_s).write(None);
+        uninit_field!(slot, settling).write(0);
+        uninit_field!(slot, counters).write(LearnerCounters::default());
+        // SAFETY: all 6 fields are written.
+        unsafe { slot.assume_init_mut() }
+    }
+
+    fn default_config(mount: &Mount) -> GuiderConfig<f32> {
         let c = mount.config();
-        Learner {
-            guider: Guider::new(config),
-            snr: 0.0,
-            cadence_s: c.guide_cadence_s,
-            last_gear_s: None,
-            settling: 0,
-            counters: LearnerCounters::default(),
+        GuiderConfig {
+            prior_period_s: c.worm_period_s as f64,
+            control_gain: c.guider_aggressiveness,
+            ..GuiderConfig::default()
         }
     }
 
