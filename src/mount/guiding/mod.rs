@@ -10,8 +10,8 @@
 //! per frame at lower priority and returns the [`FeedForward`] that
 //! `Guiding` applies until the next one.
 //!
-//! Its parts: [`applied`] (the applied correction C and the gear time),
-//! [`framer`] (the frames and their queue), [`feed_forward`] (the
+//! Its parts: `applied` (the applied correction C and the gear time),
+//! `framer` (the frames and their queue), `feed_forward` (the
 //! feed-forward in effect).
 //!
 //! # Units and signs
