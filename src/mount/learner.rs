@@ -9,7 +9,7 @@
 
 use core::mem::MaybeUninit;
 
-use crate::model::guider::{Guider, GuiderConfig, DITHER_FRAMES};
+use crate::model::guider::{Faults, Guider, GuiderConfig, DITHER_FRAMES};
 use crate::model::in_place::{build, uninit_field};
 use crate::mount::config::Mount;
 use crate::mount::frame::{FeedForward, Frame, FrameKind};
@@ -21,8 +21,9 @@ pub struct LearnerCounters {
     pub frames: u32,
     /// Of them learned as observations of the gear error.
     pub learned: u32,
-    /// Passed as unmeasured: silence, dithers and the frames settling after
-    /// one.
+    /// Not learned: silence, dithers and the frames settling after one
+    /// (passed as unmeasured), and frames the model refused (a bad
+    /// observation or time, counted in its `Faults`).
     pub not_learned: u32,
     /// Dithers the model was told about.
     pub dithers: u32,
@@ -94,6 +95,22 @@ impl<const N: usize> Learner<N> {
         self.counters
     }
 
+    /// Whether the model refused the last frame: a bad observation or
+    /// frame time, counted in its faults since `before`.
+    fn refused_since(&self, before: Faults) -> bool {
+        let now = self.guider.faults();
+        now.bad_input != before.bad_input || now.bad_time != before.bad_time
+    }
+
+    fn count(&mut self, learned: bool) {
+        self.counters.frames = self.counters.frames.saturating_add(1);
+        if learned {
+            self.counters.learned = self.counters.learned.saturating_add(1);
+        } else {
+            self.counters.not_learned = self.counters.not_learned.saturating_add(1);
+        }
+    }
+
     /// Learn one frame and return the feed-forward for the time to the next.
     pub fn learn(&mut self, frame: Frame) -> FeedForward {
         let t = frame.gear_time_s;
@@ -129,13 +146,8 @@ impl<const N: usize> Learner<N> {
             FrameKind::Measured if !settling => Some(frame.gear_error_arcsec as f64),
             _ => None,
         };
-        self.counters.frames = self.counters.frames.saturating_add(1);
-        if observation.is_some() {
-            self.counters.learned = self.counters.learned.saturating_add(1);
-        } else {
-            self.counters.not_learned = self.counters.not_learned.saturating_add(1);
-        }
         let step = next + 0.5 * d;
+        let faults_before = self.guider.faults();
         let change = self.guider.observe(
             t,
             observation,
@@ -143,6 +155,7 @@ impl<const N: usize> Learner<N> {
             self.snr,
             step as f32,
         );
+        self.count(observation.is_some() && !self.refused_since(faults_before));
         let rate = change as f64 / (next + d);
         let rate = if rate.is_finite() { rate as f32 } else { 0.0 };
         FeedForward {
@@ -187,5 +200,31 @@ mod tests {
         });
         let c = l.counters();
         assert_eq!((c.frames, c.learned, c.dithers), (51, 50, 1));
+    }
+
+    /// F5 through the learner: an observation the model refuses (beyond
+    /// its `max_input`) is counted as not learned, and the feed-forward
+    /// stays finite and small.
+    #[test]
+    fn an_absurd_observation_is_not_learned() {
+        let m = MountConfig::default().validate().unwrap();
+        let mut l: std::boxed::Box<Learner<1>> = std::boxed::Box::new(Learner::new(&m));
+        let frame = |k: u32, error: f32| Frame {
+            gear_time_s: 2.0 * k as f64,
+            interval_s: 2.0,
+            kind: FrameKind::Measured,
+            gear_error_arcsec: error,
+            applied_arcsec: 0.0,
+            pulse_arcsec: 0.0,
+            filled: false,
+        };
+        for k in 0..20 {
+            l.learn(frame(k, 0.1));
+        }
+        let ff = l.learn(frame(20, 1e30));
+        assert!(ff.rate_arcsec_per_s.abs() < 1.0, "{ff:?}");
+        let c = l.counters();
+        assert_eq!((c.frames, c.learned, c.not_learned), (21, 20, 1));
+        assert_eq!(l.guider().faults().bad_input, 1);
     }
 }
