@@ -8,7 +8,10 @@
 //! the bad input is then injected and the loop continues.
 
 use mkgp_mount::model::gp::grid::{CELL_S, GRID_CELLS};
-use mkgp_mount::model::guider::{Faults, Guider, GuiderConfig, DITHER_FRAMES};
+use mkgp_mount::model::guider::{
+    Faults, Guider, GuiderConfig, DITHER_FRAMES, MAX_DITHER_OFFSET_S, MAX_FRAME_GAP_S,
+    MAX_TIME_STEP_S,
+};
 use mkgp_mount::model::numeric::scalar::Scalar;
 use std::f64::consts::PI;
 
@@ -206,54 +209,27 @@ fn bad_time_is_ignored<S: Scalar, const N: usize>() {
     );
 }
 
-/// A forward jump longer than the grid's window restarts learning (counted
-/// in `grid_restarts`); the guider keeps guiding and learns again. A jump
-/// shorter than the window is not a fault.
+/// A gap of up to [`MAX_FRAME_GAP_S`] continues the clock: not a fault,
+/// the gap's cells are filled. A clock whose resolution is coarser than a
+/// frame (every frame at the same absurd time) never confirms a new clock:
+/// every frame is refused (control 0, `bad_time`). Longer gaps:
+/// `new_clock_is_confirmed`.
 fn time_jumps<S: Scalar, const N: usize>() {
-    let window = GRID_CELLS as f64 * CELL_S;
     let mut sim = warm::<S, N>();
-    // Shorter than the window: the gap's cells are filled, nothing counted.
-    sim.t += 0.5 * window;
+    sim.t += MAX_FRAME_GAP_S - DT;
     let max = sim.run_until(sim.t + 600.0);
     assert!(max <= SANE_PX);
     assert_eq!(sim.faults(), Faults::default());
-    // Longer than the window.
-    sim.t += 3.0 * window;
-    let restart_at = sim.t;
-    let first = sim.step();
-    assert!(first.abs() <= SANE_PX);
-    assert_eq!(sim.faults().grid_restarts, 1);
-    // The gap restarted learning from its first frame: the next frames
-    // continue the new data.
-    sim.step();
-    assert_eq!(sim.faults().grid_restarts, 1);
-    // Keeps guiding, and learns the gear error again.
-    let max = sim.run_until(restart_at + 2400.0);
-    assert!(max <= SANE_PX);
-    let rms = sim.residual_rms_until(restart_at + 3600.0);
-    assert!(rms < 0.5, "residual RMS after the restart {rms}");
-    assert_eq!(
-        sim.faults(),
-        Faults {
-            grid_restarts: 1,
-            ..Faults::default()
-        }
-    );
-    // An absurd jump (the clock's precision is then coarser than a frame:
-    // every frame has the same time), with sane inputs: counted once, and
-    // with no time passing no cell completes, so the guider stays reactive.
     for k in 0..50 {
         let t = 1e300 + k as f64 * DT;
         let y = S::from_f64(0.5 + 0.5 * (k as f64).sin());
         let c = sim.guider.frame(t, y, S::from_f64(SNR), S::from_f64(DT));
-        let c = c.to_f64();
-        assert!(c.abs() <= SANE_PX, "control {c} after a jump to 1e300 s");
-        assert_eq!(sim.guider.blend_weight(), 0.0);
+        assert_eq!(c.to_f64(), 0.0, "a frame at {t:e} s");
     }
     assert_eq!(
         sim.faults(),
         Faults {
-            grid_restarts: 2,
+            bad_time: 50,
             ..Faults::default()
         }
     );
@@ -313,8 +289,8 @@ fn dithers<S: Scalar, const N: usize>() {
         assert_eq!(c, gain * y);
         sim.apply(c);
     }
-    // A NaN input while settling gives 0, not NaN (and is not counted: the
-    // frame is learned as dark anyway).
+    // A NaN input while settling is a bad input: no proportional control,
+    // and no prediction either (it would span the dither's shift), counted.
     sim.guider.dithered(S::from_f64(1.0), S::from_f64(0.01));
     let c = sim.guider.frame(
         sim.t,
@@ -324,20 +300,13 @@ fn dithers<S: Scalar, const N: usize>() {
     );
     assert_eq!(c.to_f64(), 0.0);
     sim.apply(c);
-    // An absurd but finite offset (1e60 s) moves gear time beyond the
-    // window: the grid restarts once, at the first frame after the dither,
-    // and guiding goes on.
-    assert_eq!(sim.faults().grid_restarts, 0);
-    sim.guider.dithered(S::from_f64(1e30), S::from_f64(1e-30));
-    sim.step();
-    assert_eq!(sim.faults().grid_restarts, 1);
     let max = sim.run_until(sim.t + 600.0);
     assert!(max <= SANE_PX);
     assert_eq!(
         sim.faults(),
         Faults {
             bad_dithers: bad.len() as u32,
-            grid_restarts: 1,
+            bad_input: 1,
             ..Faults::default()
         }
     );
@@ -414,6 +383,190 @@ fn single_outlier<S: Scalar, const N: usize>() {
     assert_eq!(sim.faults().bad_input, 1);
 }
 
+/// F1: an input beyond `max_input` while settling after a dither is a bad
+/// input like any other (a frame without a star, counted), not 0.6 x 1e30.
+fn huge_input_while_settling<S: Scalar, const N: usize>() {
+    let mut g = Box::new(Guider::<S, N>::new(GuiderConfig::default()));
+    let (snr, dt) = (S::from_f64(SNR), S::from_f64(DT));
+    g.frame(0.0, S::from_f64(0.5), snr, dt);
+    g.dithered(S::from_f64(1.0), S::from_f64(10.0));
+    // Settling: no proportional control on a bad input.
+    let c = g.frame(2.0, S::from_f64(1e30), snr, dt);
+    assert_eq!(c.to_f64(), 0.0);
+    let c = g.frame(4.0, S::from_f64(150.0), snr, dt);
+    assert_eq!(c.to_f64(), 0.0);
+    assert_eq!(g.faults().bad_input, 2);
+    // Warm, the same: while settling the prediction is no control either.
+    let mut sim = warm::<S, N>();
+    sim.guider.dithered(S::from_f64(1.0), S::from_f64(10.0));
+    for (i, &x) in [150.0, -1e30, f64::NAN].iter().enumerate() {
+        let c = sim
+            .guider
+            .frame(sim.t, S::from_f64(x), S::from_f64(SNR), S::from_f64(DT));
+        assert_eq!(c.to_f64(), 0.0, "input {x} while settling");
+        sim.apply(c);
+        assert_eq!(sim.faults().bad_input, i as u32 + 1);
+    }
+}
+
+/// F2: one frame time from the future costs that frame, not the night: it
+/// is held (control 0, counted in `bad_time`), and the frames that continue
+/// the old clock are guided as if it had not come.
+fn future_time_costs_one_frame<S: Scalar, const N: usize>() {
+    for jump in [3600.0, 1e9, 0.5 * GRID_CELLS as f64 * CELL_S] {
+        let mut reference = warm::<S, N>();
+        let mut sim = warm::<S, N>();
+        let y = S::from_f64(sim.measured());
+        let c = sim
+            .guider
+            .frame(sim.t + jump, y, S::from_f64(SNR), S::from_f64(DT));
+        assert_eq!(c.to_f64(), 0.0, "jump {jump}");
+        assert_eq!(sim.faults().bad_time, 1);
+        // The next frames continue the old clock: exactly the reference's
+        // controls (the held frame taught nothing).
+        for k in 0..900 {
+            assert_eq!(sim.step(), reference.step(), "jump {jump}, frame {k}");
+        }
+        assert_eq!(
+            sim.faults(),
+            Faults {
+                bad_time: 1,
+                ..Faults::default()
+            }
+        );
+        let rms = sim.residual_rms_until(sim.t + 600.0);
+        assert!(rms < 0.5, "jump {jump}: residual RMS {rms}");
+    }
+}
+
+/// F2: a clock that really moved (forward beyond the frame gap, or back) is
+/// taken once a second frame continues it: the first frame is held
+/// (`bad_time`), then guiding goes on from the new clock; beyond the
+/// window, or backwards, learning starts again (`grid_restarts`).
+fn new_clock_is_confirmed<S: Scalar, const N: usize>() {
+    let window = GRID_CELLS as f64 * CELL_S;
+    for (jump, restarts) in [(1800.0, 0), (3.0 * window, 1), (-1e5, 1)] {
+        let mut sim = warm::<S, N>();
+        // Only the clock moves: the telescope's error goes on.
+        sim.applied += gear(sim.t + jump) - gear(sim.t);
+        sim.t += jump;
+        let y = S::from_f64(sim.measured());
+        let c = sim
+            .guider
+            .frame(sim.t, y, S::from_f64(SNR), S::from_f64(DT));
+        assert_eq!(c.to_f64(), 0.0, "jump {jump}");
+        sim.t += DT;
+        sim.step();
+        let max = sim.run_until(sim.t + 2400.0);
+        assert!(max <= SANE_PX, "jump {jump}: control {max}");
+        let rms = sim.residual_rms_until(sim.t + 1200.0);
+        assert!(rms < 0.5, "jump {jump}: residual RMS {rms}");
+        assert_eq!(
+            sim.faults(),
+            Faults {
+                bad_time: 1,
+                grid_restarts: restarts,
+                ..Faults::default()
+            },
+            "jump {jump}"
+        );
+    }
+}
+
+/// F3: the time step is bounded by [`MAX_TIME_STEP_S`]: a longer one gives
+/// exactly the control of a step of that length, and the guiding after it
+/// stays sane.
+fn huge_time_step<S: Scalar, const N: usize>() {
+    for dark in [false, true] {
+        let mut reference = warm::<S, N>();
+        let mut sim = warm::<S, N>();
+        let y = S::from_f64(0.223);
+        let (c, r) = if dark {
+            (
+                sim.guider.dark_frame(sim.t, S::from_f64(1e6)),
+                reference
+                    .guider
+                    .dark_frame(sim.t, S::from_f64(MAX_TIME_STEP_S)),
+            )
+        } else {
+            (
+                sim.guider
+                    .frame(sim.t, y, S::from_f64(SNR), S::from_f64(1e6)),
+                reference
+                    .guider
+                    .frame(sim.t, y, S::from_f64(SNR), S::from_f64(MAX_TIME_STEP_S)),
+            )
+        };
+        assert_eq!(c, r, "dark {dark}");
+        let c = sim.apply(c);
+        assert!(c.abs() <= 5.0, "dark {dark}: control {c}");
+        let max = sim.run_until(sim.t + 3600.0);
+        assert!(max <= 5.0, "dark {dark}: control {max} in the hour after");
+        assert_eq!(sim.faults(), Faults::default());
+    }
+}
+
+/// F4: a dither whose gear-time offset is beyond [`MAX_DITHER_OFFSET_S`]
+/// is refused (`bad_dithers`) and changes nothing: learning and the
+/// reported progress go on exactly as without it.
+fn absurd_dither<S: Scalar, const N: usize>() {
+    let mut reference = warm::<S, N>();
+    let mut sim = warm::<S, N>();
+    for (amount, rate) in [
+        (1e30, 1e-30),
+        (-1e30, 1e-30),
+        (1.01 * MAX_DITHER_OFFSET_S, 1.0),
+    ] {
+        sim.guider.dithered(S::from_f64(amount), S::from_f64(rate));
+    }
+    assert_eq!(sim.faults().bad_dithers, 3);
+    while sim.t < WARM_S + 4.0 * 3600.0 {
+        assert_eq!(sim.step(), reference.step(), "at {} s", sim.t);
+        assert_eq!(
+            sim.guider.learning_progress(),
+            reference.guider.learning_progress()
+        );
+    }
+    assert!(sim.guider.prediction().to_f64() != 0.0);
+}
+
+/// F5: `observe` gives an observation whose measured part (the gear error
+/// less the applied corrections) is not finite or beyond `max_input` the
+/// same treatment as `frame`: not learned (an unmeasured frame), counted in
+/// `bad_input`; the feed-forwards after it stay sane.
+fn observe_huge_gear_error<S: Scalar, const N: usize>() {
+    let mut g = Box::new(Guider::<S, N>::new(GuiderConfig::default()));
+    let (snr, dt) = (S::from_f64(SNR), S::from_f64(DT));
+    let mut t = 0.0;
+    while t < WARM_S {
+        g.observe(t, Some(gear(t)), 0.0, snr, dt);
+        t += DT;
+    }
+    // A large applied correction is not an error: only the measured part counts.
+    g.observe(t, Some(gear(t) + 500.0), 500.0, snr, dt);
+    t += DT;
+    for (i, &x) in [1e30, -150.0, f64::NAN].iter().enumerate() {
+        let ff = g.observe(t, Some(gear(t) + x), 0.0, snr, dt).to_f64();
+        assert!(ff.abs() <= 1.0, "observation {x}: feed-forward {ff}");
+        assert_eq!(g.faults().bad_input, i as u32 + 1);
+        t += DT;
+    }
+    let mut max: f64 = 0.0;
+    while t < WARM_S + 3.0 * 3600.0 {
+        max = max.max(g.observe(t, Some(gear(t)), 0.0, snr, dt).to_f64().abs());
+        t += DT;
+    }
+    // The gear error moves at most 0.13 px/s: 0.26 px a frame.
+    assert!(max <= 0.5, "feed-forward {max} after a huge observation");
+    assert_eq!(
+        g.faults(),
+        Faults {
+            bad_input: 3,
+            ..Faults::default()
+        }
+    );
+}
+
 macro_rules! for_each_variant {
     ($($check:ident),* $(,)?) => {
         $(mod $check {
@@ -447,4 +600,10 @@ for_each_variant!(
     grid_wraps,
     huge_inputs,
     single_outlier,
+    huge_input_while_settling,
+    future_time_costs_one_frame,
+    new_clock_is_confirmed,
+    huge_time_step,
+    absurd_dither,
+    observe_huge_gear_error,
 );

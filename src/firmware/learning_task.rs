@@ -22,13 +22,12 @@ pub fn frames_learned() -> u32 {
     FRAMES_LEARNED.load(Ordering::Relaxed)
 }
 
-/// Builds the model in [`LEARNER`]. Not inlined, so that its stack frame is
-/// its own and can be read in the disassembly: `Learner::new` returns by
-/// value, and LLVM builds most of it in a temporary on the stack
-/// (`docs/firmware.md`).
+/// Builds the model in [`LEARNER`], in place (`Learner::init`: no
+/// temporary copy on the stack). Not inlined, so that its stack frame is
+/// its own and can be read in the disassembly (`docs/firmware.md`).
 #[inline(never)]
 pub fn make_learner(mount: &Mount) -> Option<&'static mut Learner<STAGES>> {
-    LEARNER.try_init_with(|| Learner::new(mount))
+    LEARNER.try_uninit().map(|slot| Learner::init(slot, mount))
 }
 
 /// Runs the model once per guide frame (the longest thing that runs here)

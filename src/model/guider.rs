@@ -12,9 +12,12 @@
 //! simulator applies it as `U += control`; INDIGO reports `-control` as its
 //! "correction".
 
+use core::mem::MaybeUninit;
+
 use crate::model::gp::grid::{Grid, Push, CELL_S, GRID_CELLS};
 use crate::model::gp::infer::Gp;
 use crate::model::gp::kernel::Kernel;
+use crate::model::in_place::{build, fill, uninit_field};
 use crate::model::numeric::scalar::Scalar;
 use crate::model::spectral::discovery::Discovery;
 use crate::model::spectral::fft::FFT_LEN;
@@ -31,6 +34,24 @@ const HYSTERESIS: f64 = 0.1;
 const DARK_VARIANCE: f64 = 1e4;
 /// SNR assumed when the caller does not know it.
 const DEFAULT_SNR: f64 = 10.0;
+/// The longest time step (to the next frame) the guider predicts over,
+/// seconds. Guide cycles run from 0.1 s to about a minute (a 30 s exposure
+/// plus download and settling); a longer step is clamped to this, so that
+/// a wrong step cannot turn the prediction into a move of many pixels.
+pub const MAX_TIME_STEP_S: f64 = 60.0;
+/// The largest shift of gear time one dither may make, seconds. A dither
+/// moves gear time by amount / rate: a few px at the sidereal rate in px
+/// per second (1.5 px/s even at 10"/px), i.e. seconds; 600 s leaves room
+/// for any real one and stays far inside the grid's window (2.8 h), so that
+/// no dither can make the grid restart or stall.
+pub const MAX_DITHER_OFFSET_S: f64 = 600.0;
+/// The longest interval between two frames of one clock, seconds: a frame
+/// further ahead (or behind by more) is held until the next frame says
+/// which clock is right. Guide cycles are at most about a minute and a
+/// paused guider resumes after minutes; 600 s keeps the longest gap of the
+/// reference logs (173 s) one clock, and a glitch within it costs at most
+/// 600 s of frames.
+pub const MAX_FRAME_GAP_S: f64 = 600.0;
 
 /// Tuning of the guider.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -82,18 +103,23 @@ impl<S: Scalar> Default for GuiderConfig<S> {
 /// that never reaches the motor as garbage.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Faults {
-    /// Frame time not finite or earlier than the previous frame: the frame
-    /// was ignored and the control is 0.
+    /// Frame time not finite, or not continuing the clock (earlier than
+    /// the previous frame, or more than [`MAX_FRAME_GAP_S`] later): the
+    /// frame was ignored and the control is 0. A frame off the clock by
+    /// more than [`MAX_FRAME_GAP_S`] either way is held: if the next frame
+    /// continues it, the clock has moved and guiding goes on from there.
     pub bad_time: u32,
     /// Input not finite or beyond `max_input`: handled as a frame without a
     /// star.
     pub bad_input: u32,
     /// The Gram matrix did not factor: the frame fell back to hysteresis.
     pub inference_failures: u32,
-    /// The frames jumped by more than the grid's window: the data was
-    /// dropped and learning started again (the periods are kept).
+    /// The clock moved (a held frame confirmed, see `bad_time`) by more
+    /// than the grid's window, or back: the data was dropped and learning
+    /// started again (the periods are kept).
     pub grid_restarts: u32,
-    /// A dither with a non-finite amount or a zero or non-finite rate.
+    /// A dither refused: a non-finite amount, a zero or non-finite rate, or
+    /// a gear-time shift beyond [`MAX_DITHER_OFFSET_S`].
     pub bad_dithers: u32,
 }
 
@@ -118,6 +144,9 @@ pub struct Guider<S: Scalar, const N: usize = 2> {
     frames: u32,
     start_time: f64,
     last_time: f64,
+    /// The time of a held frame that did not continue the clock (see
+    /// [`Faults::bad_time`]).
+    held_time: Option<f64>,
     /// Sum of the controls of all earlier frames.
     sum_control: f64,
     /// Controls of the last two frames, newest first. The hysteresis term
@@ -153,6 +182,12 @@ fn measurement_variance(snr: f64) -> f64 {
 
 impl<S: Scalar, const N: usize> Guider<S, N> {
     pub fn new(config: GuiderConfig<S>) -> Self {
+        build(|slot| Self::init(slot, config))
+    }
+
+    /// [`new`](Self::new) in place, e.g. into a static: no temporary copy
+    /// of the ~55 KiB on the stack (`crate::model::in_place`).
+    pub fn init(slot: &mut MaybeUninit<Self>, config: GuiderConfig<S>) -> &mut Self {
         let trackers = [PeriodTracker::new(config.prior_period_s); N];
         let mut gates = [0.0; N];
         gates[0] = 1.0;
@@ -161,30 +196,31 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             s.checked_sub(1)
                 .and_then(|i| config.stage_seeds_s.get(i).copied().flatten())
         });
-        Self {
-            config,
-            grid: Grid::new(),
-            scratch: [S::ZERO; FFT_LEN],
-            peaks_stale: true,
-            gp: Gp::new(),
-            kernel: Kernel::new(&periods, &gates),
-            trackers,
-            gates,
-            discovery: Discovery::new(seeds),
-            worm_peak_s: None,
-            frames: 0,
-            start_time: 0.0,
-            last_time: 0.0,
-            sum_control: 0.0,
-            recent_controls: [S::ZERO; 2],
-            last_prediction_end: None,
-            prediction: S::ZERO,
-            dither_offset: 0.0,
-            dither_frames_left: 0,
-            learning_progress: 0.0,
-            blend: 0.0,
-            faults: Faults::default(),
-        }
+        uninit_field!(slot, config).write(config);
+        Grid::init(uninit_field!(slot, grid));
+        fill(uninit_field!(slot, scratch), S::ZERO);
+        uninit_field!(slot, peaks_stale).write(true);
+        Gp::init(uninit_field!(slot, gp));
+        uninit_field!(slot, kernel).write(Kernel::new(&periods, &gates));
+        uninit_field!(slot, trackers).write(trackers);
+        uninit_field!(slot, gates).write(gates);
+        uninit_field!(slot, discovery).write(Discovery::new(seeds));
+        uninit_field!(slot, worm_peak_s).write(None);
+        uninit_field!(slot, frames).write(0);
+        uninit_field!(slot, start_time).write(0.0);
+        uninit_field!(slot, last_time).write(0.0);
+        uninit_field!(slot, held_time).write(None);
+        uninit_field!(slot, sum_control).write(0.0);
+        uninit_field!(slot, recent_controls).write([S::ZERO; 2]);
+        uninit_field!(slot, last_prediction_end).write(None);
+        uninit_field!(slot, prediction).write(S::ZERO);
+        uninit_field!(slot, dither_offset).write(0.0);
+        uninit_field!(slot, dither_frames_left).write(0);
+        uninit_field!(slot, learning_progress).write(0.0);
+        uninit_field!(slot, blend).write(0.0);
+        uninit_field!(slot, faults).write(Faults::default());
+        // SAFETY: all 23 fields are written.
+        unsafe { slot.assume_init_mut() }
     }
 
     /// Forget the data (not the learned periods, nor the fault counters).
@@ -246,26 +282,29 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     /// One guide frame with a star. `time_s`: the guider's clock in seconds
     /// (any origin; the first frame after construction or reset is the
     /// start). `snr` <= 0 or not finite means unknown. `time_step`: the
-    /// time to the next frame, seconds. Returns the control.
+    /// time to the next frame, seconds, at most [`MAX_TIME_STEP_S`].
+    /// Returns the control.
     pub fn frame(&mut self, time_s: f64, input: S, snr: S, time_step: S) -> S {
         if !self.accept_time(time_s) {
             return S::ZERO;
         }
+        let settling = self.settle_one_frame();
+        let good = self.is_guide_error(input.to_f64());
         let reactive = self.config.control_gain * input;
-        if self.dither_frames_left > 0 {
-            // Settling after a dither: the measurement is not gear error.
-            // Proportional control, and the frame is learned as dark.
-            self.dither_frames_left -= 1;
+        if settling {
+            // Settling after a dither: the measurement is not gear error,
+            // and a prediction would span the dither's shift of gear time.
+            // Proportional control (none for a bad input), and the frame is
+            // learned as dark.
             self.dark_step(time_s, time_step);
-            return if reactive.is_finite() {
+            return if good && reactive.is_finite() {
                 reactive
             } else {
                 S::ZERO
             };
         }
-        if !(input.abs() <= self.config.max_input) {
-            self.faults.bad_input = self.faults.bad_input.saturating_add(1);
-            return self.dark_frame(time_s, time_step);
+        if !good {
+            return self.dark_step(time_s, time_step);
         }
         let variance = measurement_variance(snr.to_f64());
         let gain = self.config.control_gain;
@@ -299,7 +338,10 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     /// fails. `gear_error: None` means nothing was measured this frame (the
     /// guider was silent): the frame is kept with a variance that makes it
     /// count for nothing, at the estimate `unmeasured_estimate`. Frames while
-    /// settling after [`dithered`](Self::dithered) are not learned either.
+    /// settling after [`dithered`](Self::dithered) are not learned either,
+    /// nor, counted in [`Faults::bad_input`], an observation whose measured
+    /// part (`gear_error - unmeasured_estimate`, what the guider reported)
+    /// is not finite or beyond `max_input`.
     /// Use either this or [`frame`](Self::frame) on one guider, not both.
     pub fn observe(
         &mut self,
@@ -312,16 +354,10 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         if !self.accept_time(time_s) {
             return S::ZERO;
         }
-        let settling = self.dither_frames_left > 0;
-        if settling {
-            self.dither_frames_left -= 1;
-        }
-        let (gear, variance) = match gear_error {
-            Some(g) if !settling && g.is_finite() => (g, measurement_variance(snr.to_f64())),
-            Some(g) if !g.is_finite() => {
-                self.faults.bad_input = self.faults.bad_input.saturating_add(1);
-                (unmeasured_estimate, DARK_VARIANCE)
-            }
+        let settling = self.settle_one_frame();
+        let measured = gear_error.filter(|g| self.is_guide_error(g - unmeasured_estimate));
+        let (gear, variance) = match measured {
+            Some(g) if !settling => (g, measurement_variance(snr.to_f64())),
             _ => (unmeasured_estimate, DARK_VARIANCE),
         };
         let (timestamp, prediction) = self.model_step(time_s, time_step);
@@ -347,11 +383,13 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
 
     /// The guider dithered by `amount` (px or arcsec) at `rate` (the same
     /// units per second of gear time): shift gear time and settle for
-    /// [`DITHER_FRAMES`] frames without learning.
+    /// [`DITHER_FRAMES`] frames without learning. An offset `amount / rate`
+    /// that is not finite or beyond [`MAX_DITHER_OFFSET_S`] is no dither:
+    /// refused, counted in [`Faults::bad_dithers`], nothing changes.
     pub fn dithered(&mut self, amount: S, rate: S) {
         let (amount, rate) = (amount.to_f64(), rate.to_f64());
         let offset = amount / rate;
-        if !offset.is_finite() {
+        if !(offset.abs() <= MAX_DITHER_OFFSET_S) {
             self.faults.bad_dithers = self.faults.bad_dithers.saturating_add(1);
             return;
         }
@@ -405,27 +443,74 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         self.finish_frame(timestamp, 0.0, DARK_VARIANCE, control)
     }
 
+    /// The time step in 0..=[`MAX_TIME_STEP_S`]; not finite or not
+    /// positive is 0.
     fn sanitize_step(time_step: S) -> f64 {
         let dt = time_step.to_f64();
         if dt.is_finite() && dt > 0.0 {
-            dt
+            dt.min(MAX_TIME_STEP_S)
         } else {
             0.0
         }
     }
 
-    /// Refuse a frame time that is not finite or runs backwards; after a
-    /// gap longer than the grid's window, start learning again from this
-    /// frame.
-    fn accept_time(&mut self, time_s: f64) -> bool {
-        let ok = time_s.is_finite() && (self.frames == 0 || time_s >= self.last_time);
+    /// Counts one frame of the settling after a dither; true while settling.
+    fn settle_one_frame(&mut self) -> bool {
+        let settling = self.dither_frames_left > 0;
+        if settling {
+            self.dither_frames_left -= 1;
+        }
+        settling
+    }
+
+    /// Whether a measured error is one the guider could mean (finite and
+    /// within `max_input`); if not, it is counted in [`Faults::bad_input`].
+    fn is_guide_error(&mut self, error: f64) -> bool {
+        let ok = error.abs() <= self.config.max_input.to_f64();
         if !ok {
+            self.faults.bad_input = self.faults.bad_input.saturating_add(1);
+        }
+        ok
+    }
+
+    /// Whether the frame at `time_s` may be used. A frame that continues
+    /// the clock (0 to [`MAX_FRAME_GAP_S`] after the previous one) is
+    /// accepted. One that does not is refused (counted in
+    /// [`Faults::bad_time`]); if it is off by more than [`MAX_FRAME_GAP_S`]
+    /// it is held, and a next frame that continues it rather than the old
+    /// clock moves the clock there (one glitch costs one frame; a clock
+    /// that really jumped, one frame too).
+    fn accept_time(&mut self, time_s: f64) -> bool {
+        let held = self.held_time.take();
+        if !time_s.is_finite() {
             self.faults.bad_time = self.faults.bad_time.saturating_add(1);
-        } else if self.frames > 0 && time_s - self.last_time > GRID_CELLS as f64 * CELL_S {
+            return false;
+        }
+        if self.frames == 0 || continues(self.last_time, time_s) {
+            return true;
+        }
+        if let Some(held) = held.filter(|&h| continues(h, time_s) && h < time_s) {
+            self.move_clock(held);
+            return true;
+        }
+        if (time_s - self.last_time).abs() > MAX_FRAME_GAP_S {
+            self.held_time = Some(time_s);
+        }
+        self.faults.bad_time = self.faults.bad_time.saturating_add(1);
+        false
+    }
+
+    /// The clock moved to `held_time` (a held frame, confirmed by the next
+    /// one): a gap within the grid's window is bridged; a longer one, or a
+    /// clock that went back, starts learning again.
+    fn move_clock(&mut self, held_time: f64) {
+        let gap = held_time - self.last_time;
+        if (0.0..=GRID_CELLS as f64 * CELL_S).contains(&gap) {
+            self.last_time = held_time;
+        } else {
             self.reset();
             self.faults.grid_restarts = self.faults.grid_restarts.saturating_add(1);
         }
-        ok
     }
 
     /// Gear time of the current frame: the midpoint of the interval since
@@ -560,6 +645,12 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         }
         0.5 * ramp + 0.5 * self.convergence()
     }
+}
+
+/// Whether a frame at `time_s` continues a clock whose last frame was at
+/// `last_s`.
+fn continues(last_s: f64, time_s: f64) -> bool {
+    (0.0..=MAX_FRAME_GAP_S).contains(&(time_s - last_s))
 }
 
 #[cfg(test)]

@@ -6,8 +6,10 @@
 //! scalars (20,200 bytes in `f32`). After [`Ldlt::factor`] the strict lower
 //! part holds `L` (unit diagonal implied) and the diagonal holds `D`.
 
+use core::mem::MaybeUninit;
 use core::ops::Range;
 
+use crate::model::in_place::{build, fill, uninit_field};
 use crate::model::numeric::dot::{dot, BLOCK};
 use crate::model::numeric::scalar::Scalar;
 
@@ -39,12 +41,17 @@ impl<S: Scalar, const CAP: usize, const TRI: usize> Ldlt<S, CAP, TRI> {
     const TRI_MATCHES_CAP: () = assert!(TRI == CAP * (CAP + 1) / 2);
 
     pub fn new() -> Self {
+        build(Self::init)
+    }
+
+    /// [`new`](Self::new) in place (`crate::model::in_place`).
+    pub fn init(slot: &mut MaybeUninit<Self>) -> &mut Self {
         #[allow(clippy::let_unit_value)]
         let _ = Self::TRI_MATCHES_CAP;
-        Self {
-            a: [S::ZERO; TRI],
-            n: 0,
-        }
+        fill(uninit_field!(slot, a), S::ZERO);
+        uninit_field!(slot, n).write(0);
+        // SAFETY: both fields are written.
+        unsafe { slot.assume_init_mut() }
     }
 
     /// Current dimension.

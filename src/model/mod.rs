@@ -2,12 +2,14 @@
 //! generic over the scalar type so that the same code runs in `f64` (the
 //! reference) and in `f32` (the target).
 //!
-//! Layers, each using only those above it: [`numeric`], then [`ldlt`] (linear
+//! Layers, each using only those above it: [`numeric`] and `in_place`
+//! (building the large state where it lives), then [`ldlt`] (linear
 //! algebra), [`spectral`] and [`gp`], and on top the [`guider`], which turns
 //! frames into controls and predictions.
 
 pub mod gp;
 pub mod guider;
+pub(crate) mod in_place;
 pub mod ldlt;
 pub mod numeric;
 pub mod spectral;

@@ -7,7 +7,10 @@
 //! and runs in a task of lower priority than ST4 and stepping, once per
 //! frame.
 
-use crate::model::guider::{Guider, GuiderConfig, DITHER_FRAMES};
+use core::mem::MaybeUninit;
+
+use crate::model::guider::{Faults, Guider, GuiderConfig, DITHER_FRAMES};
+use crate::model::in_place::{build, uninit_field};
 use crate::mount::config::Mount;
 use crate::mount::frame::{FeedForward, Frame, FrameKind};
 
@@ -18,8 +21,9 @@ pub struct LearnerCounters {
     pub frames: u32,
     /// Of them learned as observations of the gear error.
     pub learned: u32,
-    /// Passed as unmeasured: silence, dithers and the frames settling after
-    /// one.
+    /// Not learned: silence, dithers and the frames settling after one
+    /// (passed as unmeasured), and frames the model refused (a bad
+    /// observation or time, counted in its `Faults`).
     pub not_learned: u32,
     /// Dithers the model was told about.
     pub dithers: u32,
@@ -42,26 +46,44 @@ impl<const N: usize> Learner<N> {
     /// The model with the library's defaults, the worm period of the mount
     /// as its prior period.
     pub fn new(mount: &Mount) -> Self {
-        let c = mount.config();
-        let config = GuiderConfig::<f32> {
-            prior_period_s: c.worm_period_s as f64,
-            control_gain: c.guider_aggressiveness,
-            ..GuiderConfig::default()
-        };
-        Self::with_config(mount, config)
+        Self::with_config(mount, Self::default_config(mount))
+    }
+
+    /// [`new`](Self::new) in place, e.g. into the firmware's static: the
+    /// model (~55 KiB) is written where it lives, with no temporary copy on
+    /// the stack.
+    pub fn init<'a>(slot: &'a mut MaybeUninit<Self>, mount: &Mount) -> &'a mut Self {
+        Self::init_with_config(slot, mount, Self::default_config(mount))
     }
 
     /// The model with another configuration (the control and prediction
     /// gains are not used: the learner only observes).
     pub fn with_config(mount: &Mount, config: GuiderConfig<f32>) -> Self {
+        build(|slot| Self::init_with_config(slot, mount, config))
+    }
+
+    /// [`with_config`](Self::with_config) in place.
+    pub fn init_with_config<'a>(
+        slot: &'a mut MaybeUninit<Self>,
+        mount: &Mount,
+        config: GuiderConfig<f32>,
+    ) -> &'a mut Self {
+        Guider::init(uninit_field!(slot, guider), config);
+        uninit_field!(slot, snr).write(0.0);
+        uninit_field!(slot, cadence_s).write(mount.config().guide_cadence_s);
+        uninit_field!(slot, last_gear_s).write(None);
+        uninit_field!(slot, settling).write(0);
+        uninit_field!(slot, counters).write(LearnerCounters::default());
+        // SAFETY: all 6 fields are written.
+        unsafe { slot.assume_init_mut() }
+    }
+
+    fn default_config(mount: &Mount) -> GuiderConfig<f32> {
         let c = mount.config();
-        Learner {
-            guider: Guider::new(config),
-            snr: 0.0,
-            cadence_s: c.guide_cadence_s,
-            last_gear_s: None,
-            settling: 0,
-            counters: LearnerCounters::default(),
+        GuiderConfig {
+            prior_period_s: c.worm_period_s as f64,
+            control_gain: c.guider_aggressiveness,
+            ..GuiderConfig::default()
         }
     }
 
@@ -71,6 +93,22 @@ impl<const N: usize> Learner<N> {
 
     pub fn counters(&self) -> LearnerCounters {
         self.counters
+    }
+
+    /// Whether the model refused the last frame: a bad observation or
+    /// frame time, counted in its faults since `before`.
+    fn refused_since(&self, before: Faults) -> bool {
+        let now = self.guider.faults();
+        now.bad_input != before.bad_input || now.bad_time != before.bad_time
+    }
+
+    fn count(&mut self, learned: bool) {
+        self.counters.frames = self.counters.frames.saturating_add(1);
+        if learned {
+            self.counters.learned = self.counters.learned.saturating_add(1);
+        } else {
+            self.counters.not_learned = self.counters.not_learned.saturating_add(1);
+        }
     }
 
     /// Learn one frame and return the feed-forward for the time to the next.
@@ -108,13 +146,8 @@ impl<const N: usize> Learner<N> {
             FrameKind::Measured if !settling => Some(frame.gear_error_arcsec as f64),
             _ => None,
         };
-        self.counters.frames = self.counters.frames.saturating_add(1);
-        if observation.is_some() {
-            self.counters.learned = self.counters.learned.saturating_add(1);
-        } else {
-            self.counters.not_learned = self.counters.not_learned.saturating_add(1);
-        }
         let step = next + 0.5 * d;
+        let faults_before = self.guider.faults();
         let change = self.guider.observe(
             t,
             observation,
@@ -122,6 +155,7 @@ impl<const N: usize> Learner<N> {
             self.snr,
             step as f32,
         );
+        self.count(observation.is_some() && !self.refused_since(faults_before));
         let rate = change as f64 / (next + d);
         let rate = if rate.is_finite() { rate as f32 } else { 0.0 };
         FeedForward {
@@ -166,5 +200,31 @@ mod tests {
         });
         let c = l.counters();
         assert_eq!((c.frames, c.learned, c.dithers), (51, 50, 1));
+    }
+
+    /// F5 through the learner: an observation the model refuses (beyond
+    /// its `max_input`) is counted as not learned, and the feed-forward
+    /// stays finite and small.
+    #[test]
+    fn an_absurd_observation_is_not_learned() {
+        let m = MountConfig::default().validate().unwrap();
+        let mut l: std::boxed::Box<Learner<1>> = std::boxed::Box::new(Learner::new(&m));
+        let frame = |k: u32, error: f32| Frame {
+            gear_time_s: 2.0 * k as f64,
+            interval_s: 2.0,
+            kind: FrameKind::Measured,
+            gear_error_arcsec: error,
+            applied_arcsec: 0.0,
+            pulse_arcsec: 0.0,
+            filled: false,
+        };
+        for k in 0..20 {
+            l.learn(frame(k, 0.1));
+        }
+        let ff = l.learn(frame(20, 1e30));
+        assert!(ff.rate_arcsec_per_s.abs() < 1.0, "{ff:?}");
+        let c = l.counters();
+        assert_eq!((c.frames, c.learned, c.not_learned), (21, 20, 1));
+        assert_eq!(l.guider().faults().bad_input, 1);
     }
 }

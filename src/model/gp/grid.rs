@@ -18,6 +18,9 @@
 //! Time bookkeeping is `f64`: O(1) work per frame, and it keeps sub-ms
 //! precision over a night also where the model runs in `f32`.
 
+use core::mem::MaybeUninit;
+
+use crate::model::in_place::{build, fill, uninit_field};
 use crate::model::numeric::scalar::Scalar;
 
 /// Number of cells: 2048 x 5 s = 2.8 h of history.
@@ -61,21 +64,26 @@ pub struct Grid<S> {
 
 impl<S: Scalar> Grid<S> {
     pub fn new() -> Self {
-        Self {
-            gear: [S::ZERO; GRID_CELLS],
-            variance: [S::ZERO; GRID_CELLS],
-            head: 0,
-            len: 0,
-            emitted: 0,
-            origin: 0.0,
-            started: false,
-            cell_end: 0.0,
-            last_time: -CELL_S,
-            anchor_gear: 0.0,
-            anchor_variance: 0.0,
-            gear_sum: 0.0,
-            variance_sum: 0.0,
-        }
+        build(Self::init)
+    }
+
+    /// [`new`](Self::new) in place (`crate::model::in_place`).
+    pub fn init(slot: &mut MaybeUninit<Self>) -> &mut Self {
+        fill(uninit_field!(slot, gear), S::ZERO);
+        fill(uninit_field!(slot, variance), S::ZERO);
+        uninit_field!(slot, head).write(0);
+        uninit_field!(slot, len).write(0);
+        uninit_field!(slot, emitted).write(0);
+        uninit_field!(slot, origin).write(0.0);
+        uninit_field!(slot, started).write(false);
+        uninit_field!(slot, cell_end).write(0.0);
+        uninit_field!(slot, last_time).write(-CELL_S);
+        uninit_field!(slot, anchor_gear).write(0.0);
+        uninit_field!(slot, anchor_variance).write(0.0);
+        uninit_field!(slot, gear_sum).write(0.0);
+        uninit_field!(slot, variance_sum).write(0.0);
+        // SAFETY: all 13 fields are written.
+        unsafe { slot.assume_init_mut() }
     }
 
     pub fn clear(&mut self) {

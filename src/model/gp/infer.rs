@@ -11,11 +11,14 @@
 //!
 //! so that predicting needs only kernel values.
 
+use core::mem::MaybeUninit;
+
 use crate::model::gp::grid::{Grid, CELL_S};
 use crate::model::gp::kernel::Kernel;
 use crate::model::gp::subset::Subset;
 use crate::model::gp::trend::Trend;
 use crate::model::gp::{gram, lag_table};
+use crate::model::in_place::{build, fill, uninit_field};
 use crate::model::ldlt::{FactorError, Ldlt};
 use crate::model::numeric::scalar::Scalar;
 
@@ -49,14 +52,19 @@ pub struct Gp<S: Scalar> {
 
 impl<S: Scalar> Gp<S> {
     pub fn new() -> Self {
-        Self {
-            chol: Ldlt::new(),
-            subset: Subset::new(),
-            weights: [S::ZERO; SUBSET],
-            trend: Trend::new(),
-            slope: S::ZERO,
-            valid: false,
-        }
+        build(Self::init)
+    }
+
+    /// [`new`](Self::new) in place (`crate::model::in_place`).
+    pub fn init(slot: &mut MaybeUninit<Self>) -> &mut Self {
+        Ldlt::init(uninit_field!(slot, chol));
+        uninit_field!(slot, subset).write(Subset::new());
+        fill(uninit_field!(slot, weights), S::ZERO);
+        uninit_field!(slot, trend).write(Trend::new());
+        uninit_field!(slot, slope).write(S::ZERO);
+        uninit_field!(slot, valid).write(false);
+        // SAFETY: all 6 fields are written.
+        unsafe { slot.assume_init_mut() }
     }
 
     /// Whether the last [`infer`](Self::infer) succeeded.

@@ -39,9 +39,11 @@
 //! decided changes (its events are late by the delivery delay). A `poll`
 //! time older than the latest time seen is harmless: it advances nothing.
 //! An edge that repeats the line's current raw level (an edge in between was
-//! missed) is ignored. An edge at the very time a cut is due comes first
-//! (a pulse of exactly the cap ends normally) unless a poll at that time
-//! came before it.
+//! missed) is ignored. Edges at the very time a cut is due come first (a
+//! pulse of exactly the cap ends normally) unless a poll at that time came
+//! before them, so the events and counters do not depend on the order in
+//! which edges of the same microsecond arrive (with `glitch_us` 0 each edge
+//! still takes effect as it arrives).
 //!
 //! **Events** wait in a fixed queue (`heapless::Deque`) of
 //! [`ST4_QUEUE_LEN`] events. When it is full, the oldest event is dropped and counted in
@@ -264,8 +266,11 @@ impl St4 {
         } else {
             st.raw_since = at_us;
         }
-        // With glitch_us = 0 it is due at once.
-        self.advance(self.now_us, true);
+        // With glitch_us = 0 it is due at once. A cut due at this very
+        // instant waits for a poll: another edge of the same microsecond
+        // may still come and end the pulse normally, whatever the order in
+        // which the lines' interrupts delivered them.
+        self.advance(self.now_us, false);
     }
 
     /// Advance time (called at least every glitch_us while a line is

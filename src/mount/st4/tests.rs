@@ -429,3 +429,28 @@ fn random_edges_keep_the_invariants() {
         }
     }
 }
+
+/// A pulse of exactly the cap ends normally whatever edge of another line
+/// comes at the same microsecond before its release: the cut at that
+/// instant waits for a poll, so the counters do not depend on the order of
+/// simultaneous edges.
+#[test]
+fn a_pulse_of_exactly_the_cap_ends_normally_whatever_comes_first() {
+    for first in [None, Some(RaPlus), Some(RaMinus), Some(DecPlus)] {
+        let mut s = st4();
+        s.edge(DecMinus, true, 0);
+        assert_eq!(drain(&mut s, G).1, 1);
+        if let Some(line) = first {
+            s.edge(line, true, CAP);
+        }
+        s.edge(DecMinus, false, CAP);
+        let (out, n) = drain(&mut s, CAP + G);
+        let end = PulseEnd {
+            axis: Dec,
+            at_us: CAP,
+        };
+        assert!(out[..n].contains(&Some(end)), "{first:?}: {:?}", &out[..n]);
+        let c = s.counters();
+        assert_eq!((c.capped, c.stuck), (0, 0), "{first:?}");
+    }
+}

@@ -1,0 +1,221 @@
+//! Randomized tests of the safety properties, from the one test RNG
+//! (`mkgp_mount::testing::SplitMix64`, fixed seeds). Their size suits CI;
+//! `MKGP_RANDOMIZED_SCALE=K` multiplies the iteration counts by K for a
+//! longer run (host-tests/README.md).
+
+use mkgp_mount::model::guider::{Guider, GuiderConfig};
+use mkgp_mount::model::numeric::scalar::Scalar;
+use mkgp_mount::mount::st4::{Axis, Line, St4, St4Counters, St4Event};
+use mkgp_mount::testing::SplitMix64;
+use std::f64::consts::PI;
+
+/// The iteration multiplier from `MKGP_RANDOMIZED_SCALE` (default 1).
+fn scale() -> u64 {
+    std::env::var("MKGP_RANDOMIZED_SCALE")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1)
+        .max(1)
+}
+
+/// Edges of distinct lines at one instant, then a poll at that instant or
+/// not.
+struct Instant {
+    at_us: u64,
+    edges: Vec<(Line, bool)>,
+    poll: bool,
+}
+
+/// A random history of ST4 edges on a coarse time grid, so that edges,
+/// confirmations (`glitch_us` a multiple of the grid) and cuts at the cap
+/// often fall on the same microsecond.
+fn random_history(rng: &mut SplitMix64, quantum: u64) -> Vec<Instant> {
+    let mut at_us = 0;
+    (0..60)
+        .map(|_| {
+            at_us += quantum * rng.below(12);
+            let mut lines = Line::ALL.to_vec();
+            let n = 1 + rng.below(4) as usize;
+            let edges = (0..n)
+                .map(|_| {
+                    let line = lines.remove(rng.below(lines.len() as u64) as usize);
+                    (line, rng.below(2) == 1)
+                })
+                .collect();
+            Instant {
+                at_us,
+                edges,
+                poll: rng.below(2) == 1,
+            }
+        })
+        .collect()
+}
+
+/// Runs a history, the edges of each instant in the order `order` gives,
+/// and returns the events of each axis and the counters. (Events of the two
+/// axes at the same microsecond may come in either order: each axis' pulses
+/// are applied on their own.)
+fn run(
+    st4: &mut St4,
+    history: &[Instant],
+    mut order: impl FnMut(&mut Vec<(Line, bool)>),
+) -> ([Vec<St4Event>; 2], St4Counters) {
+    let mut events = Vec::new();
+    let mut drain = |st4: &mut St4, now| {
+        while let Some(ev) = st4.poll(now) {
+            events.push(ev);
+        }
+    };
+    for instant in history {
+        let mut edges = instant.edges.clone();
+        order(&mut edges);
+        for (line, asserted) in edges {
+            st4.edge(line, asserted, instant.at_us);
+        }
+        if instant.poll {
+            drain(st4, instant.at_us);
+        }
+    }
+    let end = history.last().map_or(0, |i| i.at_us);
+    drain(st4, end + 100_000_000);
+    let of_axis = |axis| {
+        events
+            .iter()
+            .filter(|ev| match ev {
+                St4Event::PulseStart { axis: a, .. } | St4Event::PulseEnd { axis: a, .. } => {
+                    *a == axis
+                }
+            })
+            .copied()
+            .collect()
+    };
+    ([of_axis(Axis::Ra), of_axis(Axis::Dec)], st4.counters())
+}
+
+/// F7: each axis' events and the counters of the ST4 state machine do not depend
+/// on the order in which edges of the same microsecond arrive (once cut at
+/// the cap or normal end depended on it). Every history is run in its own
+/// order and in four shuffled ones.
+#[test]
+fn st4_same_instant_edges_in_any_order() {
+    let mut rng = SplitMix64::new(7);
+    const QUANTUM: u64 = 1_000;
+    for history_no in 0..300 * scale() {
+        let glitch_us = QUANTUM * rng.below(3);
+        let glitch_us = glitch_us.max(QUANTUM) as u32;
+        let cap_us = (QUANTUM * (5 + rng.below(20))) as u32;
+        let history = random_history(&mut rng, QUANTUM);
+        let reference = run(&mut St4::new(glitch_us, cap_us), &history, |_| {});
+        for _ in 0..4 {
+            let shuffled = run(&mut St4::new(glitch_us, cap_us), &history, |edges| {
+                for i in (1..edges.len()).rev() {
+                    edges.swap(i, rng.below(i as u64 + 1) as usize);
+                }
+            });
+            assert_eq!(shuffled, reference, "history {history_no}");
+        }
+    }
+}
+
+/// The gear error of the guider storms (px): one sinusoid and a drift.
+fn gear(t: f64) -> f64 {
+    9.0 * (2.0 * PI * t / 432.0).sin() + 0.0008 * t
+}
+
+/// One bad call to the guider at frame time `t` (s), chosen at random:
+/// bad inputs, bad times (not finite, back, far ahead), bad time steps, dark
+/// frames, absurd dithers. Returns the control it gave.
+fn bad_call<S: Scalar, const N: usize>(
+    g: &mut Guider<S, N>,
+    rng: &mut SplitMix64,
+    t: f64,
+    measured: f64,
+) -> S {
+    let s = S::from_f64;
+    let (snr, dt) = (s(10.0), s(2.0));
+    let far = 10f64.powi(2 + rng.below(10) as i32);
+    match rng.below(8) {
+        0 => g.frame(
+            t,
+            s([f64::NAN, f64::INFINITY, -1e30, 150.0][rng.below(4) as usize]),
+            snr,
+            dt,
+        ),
+        1 => g.frame(
+            [f64::NAN, f64::NEG_INFINITY][rng.below(2) as usize],
+            s(measured),
+            snr,
+            dt,
+        ),
+        2 => g.frame(t + far, s(measured), snr, dt),
+        3 => g.frame(t - 1000.0 * rng.uniform(), s(measured), snr, dt),
+        4 => g.frame(
+            t,
+            s(measured),
+            snr,
+            s([1e6, f64::NAN, -1.0][rng.below(3) as usize]),
+        ),
+        5 => g.dark_frame(t, s(far)),
+        6 => {
+            g.dithered(s(far), s(1.0 / far));
+            g.frame(t, s(measured), snr, dt)
+        }
+        _ => g.frame(t, s(measured), snr, s(0.0)),
+    }
+}
+
+/// A guider in a closed loop on [`gear`], frames every 2 s, with a bad call
+/// in place of one frame in twenty from 1200 s to 3 h: every control is
+/// finite and within `max_input`, and an hour of good frames afterwards
+/// brings the residual back to where guiding it is.
+fn guider_storm<S: Scalar, const N: usize>(seed: u64) {
+    let mut rng = SplitMix64::new(seed);
+    let mut g = Box::new(Guider::<S, N>::new(GuiderConfig::default()));
+    let max_input = g.config().max_input.to_f64();
+    let (mut t, mut applied) = (0.0, 0.0);
+    let (mut sum_sq, mut n) = (0.0, 0);
+    while t < 4.0 * 3600.0 {
+        let measured = gear(t) - applied;
+        let storm = (1200.0..3.0 * 3600.0).contains(&t) && rng.below(20) == 0;
+        let c = if storm {
+            bad_call(&mut g, &mut rng, t, measured)
+        } else {
+            g.frame(
+                t,
+                S::from_f64(measured),
+                S::from_f64(10.0),
+                S::from_f64(2.0),
+            )
+        };
+        let c = c.to_f64();
+        assert!(
+            c.is_finite() && c.abs() <= max_input,
+            "seed {seed}: control {c} at {t} s"
+        );
+        if t >= 3.5 * 3600.0 {
+            sum_sq += measured * measured;
+            n += 1;
+        }
+        applied += c;
+        t += 2.0;
+    }
+    let rms = (sum_sq / n as f64).sqrt();
+    assert!(
+        rms < 0.5,
+        "seed {seed}: residual RMS {rms} px after the storm"
+    );
+}
+
+#[test]
+fn guider_storms_f32_n2() {
+    for seed in 0..2 * scale() {
+        guider_storm::<f32, 2>(seed);
+    }
+}
+
+#[test]
+fn guider_storms_f64_n1() {
+    for seed in 0..2 * scale() {
+        guider_storm::<f64, 1>(seed);
+    }
+}
