@@ -11,6 +11,7 @@ use core::mem::MaybeUninit;
 
 use crate::model::guider::{Faults, Guider, GuiderConfig, DITHER_FRAMES};
 use crate::model::in_place::{build, uninit_field};
+use crate::model::numeric::clamp;
 use crate::mount::config::Mount;
 use crate::mount::frame::{FeedForward, Frame, FrameKind};
 
@@ -123,9 +124,10 @@ impl<const N: usize> Learner<N> {
         }
         let cadence = self.cadence_s as f64;
         // Expected time to the next frame: the last interval, within half
-        // to twice the cadence.
+        // to twice the cadence (numeric::clamp: core's asserts its bounds
+        // and would bring float formatting into the firmware).
         let next = if d > 0.0 {
-            d.clamp(0.5 * cadence, 2.0 * cadence)
+            clamp(d, 0.5 * cadence, 2.0 * cadence)
         } else {
             cadence
         };

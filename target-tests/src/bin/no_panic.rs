@@ -4,8 +4,10 @@
 //! The panic handler calls `model_code_may_panic`, a function defined
 //! nowhere. The linker drops unreferenced code, so the build links only if
 //! no panic call survives optimisation in anything this binary runs:
-//! `Guider<f32, 2>`'s `frame`, `observe`, `dark_frame` and `dithered` on
-//! inputs the compiler cannot see through (`black_box`). A link error
+//! `Guider<f32, 2>`'s `frame`, `dark_frame` and `dithered` (the PC-guider
+//! entry points), and the mount's `MountConfig::validate`, `Learner::new`
+//! and `Learner::learn` (which runs `Guider::observe`), on inputs the
+//! compiler cannot see through (`black_box`). A link error
 //! naming `model_code_may_panic` means a panic path is back; the firmware's
 //! own count (`panic_sites` in test.sh) shows where.
 //!
@@ -13,9 +15,6 @@
 //! `cargo run --release --bin no_panic` also runs the frames in QEMU (about
 //! half an hour of guiding, so that the fit, the spectrum and the stage
 //! discovery all run) and exits 0.
-//!
-//! Not covered: `mount::learner::Learner::learn`, whose `f64::clamp` still
-//! panics on bounds out of order (with formatted floats).
 #![no_std]
 #![no_main]
 
@@ -23,6 +22,9 @@ use core::hint::black_box;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hio};
 use mkgp_mount::model::guider::{Guider, GuiderConfig};
+use mkgp_mount::mount::config::MountConfig;
+use mkgp_mount::mount::frame::{Frame, FrameKind};
+use mkgp_mount::mount::learner::Learner;
 
 extern "C" {
     /// Deliberately undefined: see the module documentation.
@@ -44,7 +46,10 @@ fn gear_error(t: f32) -> f32 {
 #[entry]
 fn main() -> ! {
     let mut pc: Guider<f32, 2> = Guider::new(GuiderConfig::default());
-    let mut mount: Guider<f32, 2> = Guider::new(GuiderConfig::default());
+    let Ok(mount) = black_box(MountConfig::default()).validate() else {
+        exit(false)
+    };
+    let mut learner: Learner<2> = Learner::new(&mount);
     let mut applied = 0.0f32;
     let mut sum = 0.0f32;
     for k in 0..FRAMES {
@@ -61,16 +66,38 @@ fn main() -> ! {
             _ => pc.frame(t as f64, input, snr, dt),
         };
         applied += control;
-        // Mount side (the learner's calls), with unmeasured frames.
-        let gear = (k % 37 != 0).then_some(gear_error(t) as f64);
-        sum += mount.observe(t as f64, gear, 0.0, snr, dt);
+        // Mount side: the learner, with unmeasured frames and dithers.
+        let kind = match k % 50 {
+            10 => FrameKind::Unmeasured,
+            20 => FrameKind::Dither { amount_arcsec: 1.0 },
+            _ => FrameKind::Measured,
+        };
+        let frame = Frame {
+            gear_time_s: t as f64,
+            interval_s: dt,
+            kind,
+            gear_error_arcsec: gear_error(t),
+            applied_arcsec: 0.0,
+            pulse_arcsec: black_box(0.1),
+            filled: false,
+        };
+        sum += learner.learn(black_box(frame)).rate_arcsec_per_s;
     }
     black_box((applied, sum));
     if let Ok(mut out) = hio::hstdout() {
         // Nothing to do if the host does not take it: the exit status says it.
-        let _ = out.write_all(b"no_panic: ran the guider's entry points\n");
+        let _ = out.write_all(b"no_panic: ran the guider's and the learner's entry points\n");
     }
-    debug::exit(debug::EXIT_SUCCESS);
+    exit(true)
+}
+
+/// Ends the QEMU run with status 0 (`success`) or 1.
+fn exit(success: bool) -> ! {
+    debug::exit(if success {
+        debug::EXIT_SUCCESS
+    } else {
+        debug::EXIT_FAILURE
+    });
     loop {
         cortex_m::asm::bkpt();
     }
