@@ -18,13 +18,18 @@
 #![no_std]
 #![no_main]
 
+#[path = "../support.rs"]
+#[allow(dead_code)] // Slot: the other binaries' storage, not needed here.
+mod support;
+
 use core::hint::black_box;
 use cortex_m_rt::entry;
-use cortex_m_semihosting::{debug, hio};
+use cortex_m_semihosting::hio;
 use mkgp_mount::model::guider::{Guider, GuiderConfig};
 use mkgp_mount::mount::config::MountConfig;
 use mkgp_mount::mount::frame::{Frame, FrameKind};
 use mkgp_mount::mount::learner::Learner;
+use support::exit;
 
 extern "C" {
     /// Deliberately undefined: see the module documentation.
@@ -89,18 +94,6 @@ fn main() -> ! {
         let _ = out.write_all(b"no_panic: ran the guider's and the learner's entry points\n");
     }
     exit(true)
-}
-
-/// Ends the QEMU run with status 0 (`success`) or 1.
-fn exit(success: bool) -> ! {
-    debug::exit(if success {
-        debug::EXIT_SUCCESS
-    } else {
-        debug::EXIT_FAILURE
-    });
-    loop {
-        cortex_m::asm::bkpt();
-    }
 }
 
 #[panic_handler]
