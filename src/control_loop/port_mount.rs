@@ -20,7 +20,7 @@ use crate::control_loop::ControlLoop;
 use crate::model::numeric::clamp;
 use crate::mount::config::{Mount, SIDEREAL_ARCSEC_PER_S};
 use crate::mount::guiding::GuidingCounters;
-use crate::mount::learner::LearnerCounters;
+use crate::mount::learner::{Learner, LearnerCounters};
 use crate::mount::st4::St4Counters;
 use crate::port::coords::{Dec, Equatorial, Ra};
 use crate::port::mount_port::{
@@ -40,6 +40,33 @@ pub struct LearnerSummary {
     /// The model's stages, in order; `None` past the last.
     pub stages: [Option<Stage>; MAX_STAGES],
     pub counters: LearnerCounters,
+}
+
+impl LearnerSummary {
+    /// What `learner` knows now. The model does not expose a stage's
+    /// amplitude yet: it reads 0.
+    pub fn of<const N: usize>(learner: &Learner<N>) -> Self {
+        let g = learner.guider();
+        let mut stages = [None; MAX_STAGES];
+        for (i, slot) in stages.iter_mut().enumerate().take(N) {
+            let period_s = g.period_s(i);
+            // A stage not found yet has a NaN period: none, and none after.
+            if !period_s.is_finite() {
+                break;
+            }
+            *slot = Some(Stage {
+                // Saturating casts: a period is seconds to hours.
+                period_ms: libm::round(period_s * 1000.0) as u32,
+                amplitude_mas: 0,
+                gate_permille: libm::round(clamp(g.gate(i), 0.0, 1.0) * 1000.0) as u16,
+            });
+        }
+        LearnerSummary {
+            learned_permille: libm::round(clamp(g.learning_progress(), 0.0, 1.0) * 1000.0) as u16,
+            stages,
+            counters: learner.counters(),
+        }
+    }
 }
 
 /// Where a sync put the mount: the coordinates and the counters then.
