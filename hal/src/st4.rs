@@ -111,6 +111,12 @@ impl St4Edges {
     }
 
     /// The next edge if one is queued.
+    ///
+    /// Inlined into its one caller (the guiding task's edge source): an
+    /// outlined copy, which the compiler chose once the loop grew, carries
+    /// a second copy of the channel's internal panic path (test.sh counts
+    /// panic call sites).
+    #[inline(always)]
     pub fn try_next(&mut self) -> Option<PinEdge> {
         EDGES.try_receive().ok()
     }

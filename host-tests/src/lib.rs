@@ -13,6 +13,7 @@ pub mod data;
 pub mod gp;
 pub mod guide_algorithm;
 pub mod models;
+pub mod mount_sim;
 pub mod noise;
 pub mod phd2_log;
 pub mod replay;

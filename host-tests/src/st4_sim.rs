@@ -42,6 +42,7 @@
 use crate::cases::Case;
 use crate::guide_algorithm::{GuideAlgorithm, Hysteresis};
 use crate::noise::Gaussian;
+use mkgp_mount::control_loop::port_mount::{LearnerSummary, PortMount, PortState};
 use mkgp_mount::control_loop::st4_feed::{EdgeQueue, EdgeSource, RawEdge};
 use mkgp_mount::control_loop::stepping::AxisStepper;
 use mkgp_mount::control_loop::{ControlLoop, FrameRecord};
@@ -50,6 +51,8 @@ use mkgp_mount::mount::frame::{FeedForward, Frame, Rates};
 use mkgp_mount::mount::guiding::{Guiding, GuidingCounters, FRAME_QUEUE};
 use mkgp_mount::mount::learner::{Learner, LearnerCounters};
 use mkgp_mount::mount::st4::{Line, St4Counters};
+use mkgp_mount::port::mount_port::StepCounts;
+use mkgp_mount::port::{Interpreter, ReplySink};
 use rayon::prelude::*;
 use std::collections::VecDeque;
 
@@ -97,6 +100,14 @@ impl AnyLearner {
             AnyLearner::Two(l) => Some(l.learn(f)),
         }
     }
+    fn summary(&self) -> LearnerSummary {
+        match self {
+            AnyLearner::None => LearnerSummary::default(),
+            AnyLearner::One(l) => LearnerSummary::of(l),
+            AnyLearner::Two(l) => LearnerSummary::of(l),
+        }
+    }
+
     fn counters(&self) -> LearnerCounters {
         match self {
             AnyLearner::None => LearnerCounters::default(),
@@ -289,6 +300,35 @@ impl Rig {
 
     pub fn learner_counters(&self) -> LearnerCounters {
         self.learning.learner.counters()
+    }
+
+    /// What the learner knows now, for the command port.
+    pub fn learner_summary(&self) -> LearnerSummary {
+        self.learning.learner.summary()
+    }
+
+    /// Bytes received on a command port now: `port` carries them out on
+    /// this mount through the firmware's own `PortMount` (the loop, the
+    /// steppers' counts), with the learner's summary as of now. A motion
+    /// they start takes effect at the loop's next wake-up, as on the board.
+    pub fn feed_port(
+        &mut self,
+        port: &mut Interpreter,
+        state: &mut PortState,
+        bytes: &[u8],
+        out: &mut impl ReplySink,
+    ) {
+        state.learner = self.learner_summary();
+        let mut mount = PortMount {
+            control: &mut self.control,
+            state,
+            now_us: self.now_us,
+            steps: StepCounts {
+                ra: self.ra.steps(),
+                dec: self.dec.steps(),
+            },
+        };
+        port.feed(bytes, self.now_us, &mut mount, out);
     }
 
     pub fn guiding_counters(&self) -> GuidingCounters {

@@ -17,6 +17,8 @@
 //! The learner (the model) runs elsewhere, at lower priority: it takes the
 //! frames and returns a [`FeedForward`], which the next wake-up installs.
 
+pub mod port_motion;
+pub mod port_mount;
 pub mod st4_feed;
 pub mod stepping;
 pub mod storm;
@@ -26,7 +28,9 @@ use heapless::Vec;
 use crate::mount::config::Mount;
 use crate::mount::frame::{FeedForward, Frame, Rates};
 use crate::mount::guiding::{Guiding, GuidingCounters};
-use crate::mount::st4::{St4Counters, St4Event};
+use crate::mount::st4::{Axis, Line, St4Counters, St4Event};
+use crate::port::mount_port::{GuidePulse, ManualRate};
+use port_motion::{PortMotion, PortMotionCounters};
 use st4_feed::{EdgeSource, St4Feed};
 
 /// The rates are recomputed and set at least this often (µs): the
@@ -66,6 +70,13 @@ pub struct ControlLoop {
     guiding: Guiding,
     next_update_us: u64,
     last_counters: St4Counters,
+    port: PortMotion,
+    /// A port command changed the motion: the next wake-up sets rates.
+    rates_due: bool,
+    /// The learner's feed-forwards are installed (`:~F1#`).
+    feed_forward_on: bool,
+    /// Edges lost to a full queue, since start-up.
+    lost_edges: u32,
 }
 
 impl ControlLoop {
@@ -80,16 +91,27 @@ impl ControlLoop {
             guiding,
             next_update_us: now_us.saturating_add(RATE_UPDATE_US),
             last_counters: St4Counters::default(),
+            port: PortMotion::new(mount),
+            rates_due: false,
+            feed_forward_on: true,
+            lost_edges: 0,
         };
         (lp, rates)
     }
 
     /// When to wake if no edge arrives first, µs.
+    /// Now (0) after a port command changed the motion.
     pub fn next_wake_us(&self) -> u64 {
-        self.feed
-            .st4()
-            .next_deadline_us()
-            .map_or(self.next_update_us, |d| d.min(self.next_update_us))
+        if self.rates_due {
+            return 0;
+        }
+        [
+            self.feed.st4().next_deadline_us(),
+            self.port.next_deadline_us(),
+        ]
+        .into_iter()
+        .flatten()
+        .fold(self.next_update_us, u64::min)
     }
 
     /// One wake-up at `now_us` (every edge stamped before it is in
@@ -105,25 +127,39 @@ impl ControlLoop {
         let mut wake = Wake::default();
         let guiding = &mut self.guiding;
         let mut n_events = 0usize;
+        let port = &mut self.port;
         let mut on_event = |ev: St4Event| {
-            guiding.on_event(ev);
-            if wake.events.push(ev).is_err() {
-                wake.more_events += 1;
-            }
-            n_events += 1;
+            // ST4 events pass the port's ownership check; the port's own
+            // (its pulses' ends) come out of it the same way.
+            port.st4_event(ev, &mut |ev| {
+                guiding.on_event(ev);
+                if wake.events.push(ev).is_err() {
+                    wake.more_events += 1;
+                }
+                n_events += 1;
+            });
         };
         while let Some(edge) = edges.next_edge() {
             self.feed.edge(edge, &mut on_event);
         }
         let lost = self.feed.resync(edges.queue(), now_us, &mut on_event);
         self.feed.poll(now_us, &mut on_event);
+        let now_us = now_us.max(self.feed.last_us());
+        self.port.expire(now_us, &mut |ev| {
+            self.guiding.on_event(ev);
+            if wake.events.push(ev).is_err() {
+                wake.more_events += 1;
+            }
+            n_events += 1;
+        });
         wake.lost_edges = lost;
-        if let Some(ff) = feed_forward {
+        self.lost_edges = self.lost_edges.wrapping_add(lost);
+        if let Some(ff) = feed_forward.filter(|_| self.feed_forward_on) {
             self.guiding.set_feed_forward(ff);
         }
 
-        let now_us = now_us.max(self.feed.last_us());
-        let changed = n_events > 0;
+        let changed = n_events > 0 || core::mem::take(&mut self.rates_due);
+        self.port.apply(&mut self.guiding);
         if changed || feed_forward.is_some() || now_us >= self.next_update_us {
             wake.rates = Some(self.guiding.rates(now_us, ra_steps));
         }
@@ -158,7 +194,82 @@ impl ControlLoop {
     pub fn st4_counters(&self) -> St4Counters {
         self.feed.st4().counters()
     }
+
+    /// Edges lost to a full queue since start-up.
+    pub fn lost_edges(&self) -> u32 {
+        self.lost_edges
+    }
+
+    // The command port's motion (`port_motion`): each takes effect at
+    // `now_us` (never before the loop's latest time) and makes the next
+    // wake-up ([`ControlLoop::next_wake_us`] returns 0) set the rates.
+
+    /// The port's time: never before what the loop has decided.
+    fn port_time(&self, now_us: u64) -> u64 {
+        now_us.max(self.feed.last_us())
+    }
+
+    /// A port guide pulse: the same pulse events as an ST4 pulse. `false`
+    /// if an ST4 pulse holds the axis (counted).
+    pub fn port_guide(&mut self, pulse: GuidePulse, now_us: u64) -> bool {
+        let at = self.port_time(now_us);
+        let guiding = &mut self.guiding;
+        let ok = self.port.guide(pulse, at, &mut |ev| guiding.on_event(ev));
+        self.rates_due = true;
+        ok
+    }
+
+    /// Manual motion on a line's axis and direction, until a stop; not
+    /// learned from. `false` if an ST4 pulse holds the axis (counted).
+    pub fn port_move(&mut self, line: Line, rate: ManualRate, now_us: u64) -> bool {
+        let at = self.port_time(now_us);
+        let guiding = &mut self.guiding;
+        let ok = self
+            .port
+            .move_at(line, rate, at, &mut |ev| guiding.on_event(ev));
+        self.rates_due = true;
+        ok
+    }
+
+    /// Stops the port's pulse or manual motion on `axis`.
+    pub fn port_stop(&mut self, axis: Axis, now_us: u64) {
+        let at = self.port_time(now_us);
+        let guiding = &mut self.guiding;
+        self.port.stop(axis, at, &mut |ev| guiding.on_event(ev));
+        self.rates_due = true;
+    }
+
+    /// Tracking on or off (off: RA stops, the sky drifts by; not learned).
+    pub fn set_tracking(&mut self, on: bool) {
+        self.port.set_tracking(on);
+        self.rates_due = true;
+    }
+
+    pub fn tracking(&self) -> bool {
+        self.port.tracking()
+    }
+
+    /// Switches the learner's feed-forward on or off; off removes the one
+    /// in effect and refuses the next ones.
+    pub fn set_feed_forward_on(&mut self, on: bool) {
+        self.feed_forward_on = on;
+        if !on {
+            self.guiding.set_feed_forward(FeedForward::NONE);
+        }
+        self.rates_due = true;
+    }
+
+    pub fn feed_forward_on(&self) -> bool {
+        self.feed_forward_on
+    }
+
+    pub fn port_counters(&self) -> PortMotionCounters {
+        self.port.counters()
+    }
 }
 
 #[cfg(test)]
 mod tests;
+
+#[cfg(test)]
+mod port_tests;

@@ -6,6 +6,7 @@
 //! guide-sim replay [LOG...] [--csv]
 //! guide-sim bench [--csv] [--host-only]
 //! guide-sim st4 [--case ID] [--cases FILE] [--noise PX] [--csv]
+//! guide-sim mount [--pty PATH] [--tcp PORT] [--case ID] [--cases FILE] [--noise PX]
 //! ```
 //! `guide-sim <subcommand> --help` describes each; the arguments are
 //! parsed by clap (usage errors exit with 2).
@@ -18,11 +19,13 @@ use host_tests::guide_algorithm::{GuideAlgorithm, Hysteresis};
 use host_tests::models::{self, Model};
 use host_tests::phd2_log::{self, GuideLog};
 use host_tests::replay::{self, ReplayResult};
-use host_tests::st4_sim;
+use host_tests::{mount_sim, st4_sim};
 use host_tests::{svg, table};
 use rayon::prelude::*;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// The paper's synthetic table, PHD2-log replays, the cost of a guide frame
 /// and the firmware's ST4 closed loop.
@@ -76,6 +79,35 @@ enum Command {
     /// --noise PX picks one level; --case ID runs one case.
     #[command(verbatim_doc_comment)]
     St4(St4Args),
+    /// A virtual mount for LX200 clients: the firmware's loop on a pty, in real time
+    ///
+    /// The firmware's loop (ControlLoop, Learner<2>, the step generators, as in
+    /// `st4`) on a virtual mount whose RA error is a synthetic case (default
+    /// C1), in real time, with the command port (LX200 and our `:~` commands,
+    /// docs/port.md) served on a pseudo-terminal linked at PATH and/or a TCP
+    /// port on 127.0.0.1. Prints one line when ready; runs until SIGINT or
+    /// SIGTERM, then removes the link.
+    #[command(verbatim_doc_comment)]
+    Mount(MountArgs),
+}
+
+#[derive(Args)]
+struct MountArgs {
+    /// Serve the port on a pty linked at PATH
+    #[arg(long, value_name = "PATH", required_unless_present = "tcp")]
+    pty: Option<PathBuf>,
+    /// Serve the port on 127.0.0.1:PORT (0: any free port)
+    #[arg(long, value_name = "PORT")]
+    tcp: Option<u16>,
+    /// The case of the RA error
+    #[arg(long, value_name = "ID", default_value = "C1")]
+    case: String,
+    /// The synthetic cases [default: host-tests/data/synthetic_cases.csv]
+    #[arg(long, value_name = "FILE")]
+    cases: Option<PathBuf>,
+    /// Noise of the (unused) camera, px
+    #[arg(long, value_name = "PX", value_parser = noise_px, default_value = "0")]
+    noise: f64,
 }
 
 #[derive(Args)]
@@ -141,6 +173,48 @@ fn main() -> ExitCode {
         Command::Replay(args) => cmd_replay(args),
         Command::Bench(args) => cmd_bench(args),
         Command::St4(args) => cmd_st4(args),
+        Command::Mount(args) => cmd_mount(args),
+    }
+}
+
+/// Set by SIGINT and SIGTERM: `guide-sim mount` ends cleanly.
+static STOP: AtomicBool = AtomicBool::new(false);
+
+extern "C" fn on_signal(_: libc::c_int) {
+    // Only an atomic store: async-signal-safe.
+    STOP.store(true, Ordering::SeqCst);
+}
+
+fn cmd_mount(args: MountArgs) -> ExitCode {
+    let Some((path, cases)) = load_cases(args.cases) else {
+        return ExitCode::FAILURE;
+    };
+    let Some(case) = cases.into_iter().find(|c| c.name == args.case) else {
+        eprintln!("guide-sim: {}: no case {}", path.display(), args.case);
+        return ExitCode::FAILURE;
+    };
+    let handler = on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
+    // SAFETY: the handler only stores to an atomic.
+    unsafe {
+        libc::signal(libc::SIGINT, handler);
+        libc::signal(libc::SIGTERM, handler);
+    }
+    let opts = mount_sim::Options {
+        case,
+        noise_px: args.noise,
+        pty: args.pty,
+        tcp: args.tcp,
+    };
+    let ready = |line: &str| {
+        println!("{line}");
+        let _ = std::io::stdout().flush();
+    };
+    match mount_sim::serve(opts, &STOP, ready) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("guide-sim mount: {e}");
+            ExitCode::FAILURE
+        }
     }
 }
 

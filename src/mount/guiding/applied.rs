@@ -33,8 +33,13 @@ pub(super) struct Applied {
     integral: f64,
     /// The RA rate set at the last update, steps/s.
     last_ra_sps: f32,
-    /// Sum of the dithers' moves, arcsec, taken out of C.
+    /// Sum of the dithers' moves and of the excluded motion (below),
+    /// arcsec, taken out of C.
     dither_offset: f64,
+    /// The part of the RA rate set at the last update that is no gear
+    /// correction (manual motion, tracking off), steps/s: the model must
+    /// not learn it, so it is taken out of C as it is made.
+    excluded_sps: f32,
 }
 
 impl Applied {
@@ -49,6 +54,7 @@ impl Applied {
             integral: 0.0,
             last_ra_sps: 0.0,
             dither_offset: 0.0,
+            excluded_sps: 0.0,
         }
     }
 
@@ -95,7 +101,7 @@ impl Applied {
             };
         }
         let dt = secs_between(at_us, self.last_us);
-        let extra_sps = self.last_ra_sps as f64 - self.sidereal_sps;
+        let extra_sps = self.last_ra_sps as f64 - self.excluded_sps as f64 - self.sidereal_sps;
         let c = self.last_c + extra_sps * self.arcsec_per_step * dt;
         Mark {
             at_us,
@@ -124,6 +130,8 @@ impl Applied {
             return self.start(now_us, ra_steps);
         };
         let dt = secs_between(now_us, self.last_us);
+        // Adds exactly 0.0 (C unchanged) unless motion was excluded.
+        self.dither_offset += self.excluded_sps as f64 * dt * self.arcsec_per_step;
         let not_tracking =
             ra_steps.wrapping_sub(s0) as f64 - self.sidereal_sps * secs_between(now_us, t0);
         let c = not_tracking * self.arcsec_per_step - self.dither_offset;
@@ -133,8 +141,10 @@ impl Applied {
         self.last_steps = ra_steps;
     }
 
-    /// The RA rate set from now on, steps/s.
-    pub fn set_ra_rate(&mut self, sps: f32) {
+    /// The RA rate set from now on, steps/s, and the part of it that is
+    /// no gear correction.
+    pub fn set_ra_rate(&mut self, sps: f32, excluded_sps: f32) {
         self.last_ra_sps = sps;
+        self.excluded_sps = excluded_sps;
     }
 }

@@ -151,6 +151,29 @@ pub struct GuidingCounters {
     pub stray_ends: u32,
 }
 
+/// The motion the command port asks for besides guide pulses: tracking on
+/// or off, and a manual rate per axis. None of it is gear correction: the
+/// RA part is taken out of C as it is made (like a dither's move), so the
+/// model never learns from it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Motion {
+    pub tracking: bool,
+    /// Manual RA rate added, steps/s, signed (west positive).
+    pub manual_ra_sps: f32,
+    /// Manual Dec rate, steps/s, signed (north positive); replaces the Dec
+    /// pulse's rate while not 0.
+    pub manual_dec_sps: f32,
+}
+
+impl Motion {
+    /// Tracking, no manual motion: the mount as it starts.
+    pub const TRACKING: Motion = Motion {
+        tracking: true,
+        manual_ra_sps: 0.0,
+        manual_dec_sps: 0.0,
+    };
+}
+
 /// The fast part: pulses and time to rates, and the guide frames.
 pub struct Guiding {
     ra_guide_sps: f32,
@@ -160,6 +183,8 @@ pub struct Guiding {
     /// The active pulse per axis: direction and start.
     ra_pulse: Option<(Direction, u64)>,
     dec_pulse: Option<(Direction, u64)>,
+    /// What the command port asked beyond guide pulses (none by default).
+    motion: Motion,
     applied: Applied,
     frames: Framer,
     feed_forward: FeedForwardState,
@@ -188,6 +213,7 @@ impl Guiding {
             max_dec_sps: finite_or_zero(mount.max_dec_steps_per_s()),
             ra_pulse: None,
             dec_pulse: None,
+            motion: Motion::TRACKING,
             applied: Applied::new(sidereal_sps, SIDEREAL_ARCSEC_PER_S / sidereal_sps),
             frames: Framer::new(
                 c.guider_aggressiveness,
@@ -220,6 +246,24 @@ impl Guiding {
     pub fn feed_forward_now(&self) -> f32 {
         self.feed_forward
             .rate(self.applied.last_us(), self.frames.last_activity_us())
+    }
+
+    /// The start of the pulse running on `axis`, µs.
+    pub fn pulse_start_us(&self, axis: Axis) -> Option<u64> {
+        match axis {
+            Axis::Ra => self.ra_pulse,
+            Axis::Dec => self.dec_pulse,
+        }
+        .map(|(_, start)| start)
+    }
+
+    /// Sets the port's motion, in effect from the next `rates` call.
+    pub fn set_motion(&mut self, motion: Motion) {
+        self.motion = motion;
+    }
+
+    pub fn motion(&self) -> Motion {
+        self.motion
     }
 
     /// Learning is frozen: the guider has been silent for too long.
@@ -330,15 +374,34 @@ impl Guiding {
         let sidereal_sps = self.applied.sidereal_sps();
         let guide = self.ra_pulse.map_or(0.0, |(d, _)| d.sign()) * self.ra_guide_sps;
         let ra = (sidereal_sps + guide as f64 + ff_sps) as f32;
-        let ra_clamped = if ra.is_finite() {
-            clamp(ra, 0.0, self.max_ra_sps)
+        let clamp_ra = |ra: f32| {
+            if ra.is_finite() {
+                clamp(ra, 0.0, self.max_ra_sps)
+            } else {
+                clamp(sidereal_sps as f32, 0.0, self.max_ra_sps)
+            }
+        };
+        let learned = clamp_ra(ra);
+        let m = self.motion;
+        let (ra, ra_clamped, excluded) = if m.tracking && m.manual_ra_sps == 0.0 {
+            (ra, learned, 0.0)
         } else {
-            clamp(sidereal_sps as f32, 0.0, self.max_ra_sps)
+            // The rate set minus the rate tracking and guiding alone would
+            // have set: what the port added or took away.
+            let tracking = if m.tracking { sidereal_sps } else { 0.0 };
+            let with_port =
+                (tracking + guide as f64 + ff_sps + finite_or_zero(m.manual_ra_sps) as f64) as f32;
+            let set = clamp_ra(with_port);
+            (with_port, set, set - learned)
         };
         if ra_clamped != ra {
             self.counters.ra_clamped = self.counters.ra_clamped.saturating_add(1);
         }
-        let dec = self.dec_pulse.map_or(0.0, |(d, _)| d.sign()) * self.dec_guide_sps;
+        let dec = if m.manual_dec_sps != 0.0 {
+            m.manual_dec_sps
+        } else {
+            self.dec_pulse.map_or(0.0, |(d, _)| d.sign()) * self.dec_guide_sps
+        };
         let dec_clamped = if dec.is_finite() {
             clamp(dec, -self.max_dec_sps, self.max_dec_sps)
         } else {
@@ -347,7 +410,7 @@ impl Guiding {
         if dec_clamped != dec {
             self.counters.dec_clamped = self.counters.dec_clamped.saturating_add(1);
         }
-        self.applied.set_ra_rate(ra_clamped);
+        self.applied.set_ra_rate(ra_clamped, excluded);
         Rates {
             ra_steps_per_s: ra_clamped,
             dec_steps_per_s: dec_clamped,

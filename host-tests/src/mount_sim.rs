@@ -1,0 +1,261 @@
+//! `guide-sim mount`: the firmware's loop on a virtual mount, in real time,
+//! with its command port served on a pseudo-terminal (and/or a TCP port on
+//! 127.0.0.1) for real LX200 clients: INDI's `indi_lx200generic`, KStars,
+//! PHD2 through INDI.
+//!
+//! The mount is `st4_sim`'s [`Rig`] (the same `ControlLoop`, `Learner<2>`
+//! and step generators as `guide-sim st4`), with its own guider switched
+//! off: the client guides, through the port. Each transport has its own
+//! `Interpreter` (precision, selected rate, site and telemetry are a
+//! port's own, as on the board); the sync is the mount's, shared.
+//!
+//! The pty's slave side is kept open here and set raw: with no client on it
+//! the master would read end-of-file, and with the terminal's default echo
+//! every reply would come back to us as input.
+
+use crate::cases::Case;
+use crate::st4_sim::{Firmware, Rig};
+use mkgp_mount::control_loop::port_mount::PortState;
+use mkgp_mount::port::mount_port::Identity;
+use mkgp_mount::port::{Interpreter, ReplySink};
+use mkgp_mount::safety::reset_cause::ResetCause;
+use std::fs::File;
+use std::io::{self, ErrorKind, Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::os::fd::{AsRawFd, FromRawFd, OwnedFd};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+/// The longest the loop sleeps waiting for bytes, ms: the simulation runs
+/// at least this often, and a command waits at most this long.
+const POLL_MS: i32 = 2;
+
+/// What `guide-sim mount` serves.
+pub struct Options {
+    pub case: Case,
+    pub noise_px: f64,
+    /// Where to link the pty's slave.
+    pub pty: Option<PathBuf>,
+    /// A TCP port on 127.0.0.1.
+    pub tcp: Option<u16>,
+}
+
+/// The identity the virtual mount reports: the library's, marked simulated.
+pub const IDENTITY: Identity = Identity {
+    product: "mkgp-mount-sim",
+    version: env!("CARGO_PKG_VERSION"),
+    date: "Nov 23 2026",
+    time: "00:00:00",
+};
+
+/// A pseudo-terminal: the master we serve, the slave kept open, the link.
+pub struct Pty {
+    master: File,
+    _slave: OwnedFd,
+    link: PathBuf,
+    slave_path: PathBuf,
+}
+
+impl Pty {
+    /// Opens a pty, sets it raw and links its slave at `link` (replacing a
+    /// symlink there, never another file).
+    pub fn open(link: &Path) -> io::Result<Pty> {
+        let (mut master, mut slave) = (-1, -1);
+        // SAFETY: openpty writes two descriptors; name, termios and
+        // winsize may be null.
+        let r = unsafe {
+            libc::openpty(
+                &mut master,
+                &mut slave,
+                std::ptr::null_mut(),
+                std::ptr::null(),
+                std::ptr::null(),
+            )
+        };
+        if r != 0 {
+            return Err(io::Error::last_os_error());
+        }
+        // SAFETY: both descriptors were just opened and are ours alone.
+        let (master, slave) = unsafe { (File::from_raw_fd(master), OwnedFd::from_raw_fd(slave)) };
+        // SAFETY: termios is plain data, filled by tcgetattr before use.
+        unsafe {
+            let mut t: libc::termios = std::mem::zeroed();
+            if libc::tcgetattr(slave.as_raw_fd(), &mut t) != 0 {
+                return Err(io::Error::last_os_error());
+            }
+            libc::cfmakeraw(&mut t);
+            if libc::tcsetattr(slave.as_raw_fd(), libc::TCSANOW, &t) != 0 {
+                return Err(io::Error::last_os_error());
+            }
+            let flags = libc::fcntl(master.as_raw_fd(), libc::F_GETFL);
+            libc::fcntl(master.as_raw_fd(), libc::F_SETFL, flags | libc::O_NONBLOCK);
+        }
+        let slave_path = std::fs::read_link(format!("/proc/self/fd/{}", slave.as_raw_fd()))?;
+        if let Ok(m) = std::fs::symlink_metadata(link) {
+            if !m.file_type().is_symlink() {
+                return Err(io::Error::new(
+                    ErrorKind::AlreadyExists,
+                    format!("{} exists and is no symlink", link.display()),
+                ));
+            }
+            std::fs::remove_file(link)?;
+        }
+        std::os::unix::fs::symlink(&slave_path, link)?;
+        Ok(Pty {
+            master,
+            _slave: slave,
+            link: link.to_path_buf(),
+            slave_path,
+        })
+    }
+}
+
+impl Drop for Pty {
+    fn drop(&mut self) {
+        // Only our own link: it may have been replaced meanwhile.
+        if std::fs::read_link(&self.link).is_ok_and(|p| p == self.slave_path) {
+            let _ = std::fs::remove_file(&self.link);
+        }
+    }
+}
+
+/// Replies collected during one feed, written out after it.
+#[derive(Default)]
+struct Out(Vec<u8>);
+
+impl ReplySink for Out {
+    fn send(&mut self, reply: &[u8]) {
+        self.0.extend_from_slice(reply);
+    }
+}
+
+/// Reads what is there without blocking: `None` at end of file.
+fn read_ready(r: &mut impl Read, buf: &mut [u8]) -> io::Result<Option<usize>> {
+    match r.read(buf) {
+        Ok(0) => Ok(None),
+        Ok(n) => Ok(Some(n)),
+        Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::Interrupted) => Ok(Some(0)),
+        Err(e) => Err(e),
+    }
+}
+
+/// One transport's bytes through its interpreter on the rig; the replies
+/// written back.
+fn serve_bytes(
+    rig: &mut Rig,
+    port: &mut Interpreter,
+    state: &mut PortState,
+    bytes: &[u8],
+    w: &mut impl Write,
+) -> io::Result<()> {
+    let mut out = Out::default();
+    rig.feed_port(port, state, bytes, &mut out);
+    // The motion a command started is set at the loop's next wake-up, a
+    // microsecond on, as the board's guiding task would.
+    let now = rig.now_us;
+    rig.run_until(now + 1);
+    if !out.0.is_empty() {
+        w.write_all(&out.0)?;
+        w.flush()?;
+    }
+    Ok(())
+}
+
+/// Runs the mount until `stop` is set; `ready` is called once with a line
+/// saying where it listens.
+pub fn serve(opts: Options, stop: &AtomicBool, ready: impl FnOnce(&str)) -> io::Result<()> {
+    let mut rig = Rig::new(&opts.case, Firmware::Mkgp, opts.noise_px, 1);
+    rig.guider_on = false;
+    let mut state = PortState::new(&rig.mount, IDENTITY, ResetCause::PowerOn);
+    let mut pty = match &opts.pty {
+        Some(link) => Some((Pty::open(link)?, Interpreter::new())),
+        None => None,
+    };
+    let listener = match opts.tcp {
+        Some(p) => {
+            let l = TcpListener::bind(("127.0.0.1", p))?;
+            l.set_nonblocking(true)?;
+            Some(l)
+        }
+        None => None,
+    };
+    let mut client: Option<(TcpStream, Interpreter)> = None;
+    let mut where_ = Vec::new();
+    if let Some((p, _)) = &pty {
+        where_.push(format!(
+            "pty {} -> {}",
+            p.link.display(),
+            p.slave_path.display()
+        ));
+    }
+    if let Some(l) = &listener {
+        where_.push(format!("tcp {}", l.local_addr()?));
+    }
+    ready(&format!(
+        "guide-sim mount: ready on {}, case {}, noise {} px",
+        where_.join(", "),
+        opts.case.name,
+        opts.noise_px
+    ));
+
+    let start = Instant::now();
+    let mut buf = [0u8; 4096];
+    while !stop.load(Ordering::SeqCst) {
+        let mut fds = Vec::new();
+        if let Some((p, _)) = &pty {
+            fds.push(p.master.as_raw_fd());
+        }
+        if let Some(l) = &listener {
+            fds.push(l.as_raw_fd());
+        }
+        if let Some((c, _)) = &client {
+            fds.push(c.as_raw_fd());
+        }
+        let mut pfds: Vec<libc::pollfd> = fds
+            .iter()
+            .map(|&fd| libc::pollfd {
+                fd,
+                events: libc::POLLIN,
+                revents: 0,
+            })
+            .collect();
+        // SAFETY: pfds is a live array of pfds.len() pollfd. A signal ends
+        // the wait early (EINTR), which the loop's check handles.
+        unsafe { libc::poll(pfds.as_mut_ptr(), pfds.len() as libc::nfds_t, POLL_MS) };
+        let now_us = start.elapsed().as_micros() as u64;
+        rig.run_until(now_us.max(rig.now_us));
+
+        if let Some((p, port)) = &mut pty {
+            // EIO: no client has the slave open (cannot happen while we
+            // hold it; harmless if it does).
+            if let Ok(Some(n)) = read_ready(&mut p.master, &mut buf) {
+                if n > 0 {
+                    serve_bytes(&mut rig, port, &mut state, &buf[..n], &mut p.master)?;
+                }
+            }
+        }
+        if let Some(l) = &listener {
+            if let Ok((s, _)) = l.accept() {
+                // One client at a time: a new one replaces the old.
+                s.set_nonblocking(true)?;
+                s.set_nodelay(true)?;
+                client = Some((s, Interpreter::new()));
+            }
+        }
+        if let Some((s, port)) = &mut client {
+            let gone = match read_ready(s, &mut buf) {
+                Ok(Some(0)) => false,
+                Ok(Some(n)) => serve_bytes(&mut rig, port, &mut state, &buf[..n], s).is_err(),
+                Ok(None) | Err(_) => true,
+            };
+            if gone {
+                client = None;
+            }
+        }
+        if state.take_reset_request() {
+            eprintln!("guide-sim mount: a model reset was asked; the simulator keeps its model");
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,306 @@
+//! The command port's [`MountPort`] on top of [`ControlLoop`]: the one
+//! implementation the firmware and the simulator share. The interpreter's
+//! `feed` is given a [`PortMount`], a view for the moment of the call (the
+//! loop, the port's own state, the time and the step counters then).
+//!
+//! - Guide pulses, manual motion, stops and tracking go to the loop
+//!   (`port_motion`): a port pulse takes the ST4 pulse's path.
+//! - Position: a sync (`:CM#`) notes where the mount points, the step
+//!   counters and the time; from then on RA and Dec follow the counters.
+//!   RA holds still under sidereal tracking and moves by the steps beyond
+//!   it: the RA axis turning faster than the sky (a west pulse) points the
+//!   telescope further west, at a smaller RA, hence the minus sign. Dec
+//!   moves with the Dec steps (north positive).
+//! - Learning, stages and the learner's counters: the learner runs in
+//!   another task, so the caller keeps a [`LearnerSummary`] up to date
+//!   after each frame it learned; a model reset asked on the port is a
+//!   request the caller takes ([`PortState::take_reset_request`]).
+
+use crate::control_loop::ControlLoop;
+use crate::model::numeric::clamp;
+use crate::mount::config::{Mount, SIDEREAL_ARCSEC_PER_S};
+use crate::mount::guiding::GuidingCounters;
+use crate::mount::learner::{Learner, LearnerCounters};
+use crate::mount::st4::St4Counters;
+use crate::port::coords::{Dec, Equatorial, Ra};
+use crate::port::mount_port::{
+    Axis, Counter, CounterGroup, GuidePulse, Identity, Learning, Line, ManualRate, MountPort,
+    PecState, Stage, Status, StepCounts,
+};
+use crate::safety::reset_cause::ResetCause;
+
+/// Stages a [`LearnerSummary`] holds (the firmware's model has two).
+pub const MAX_STAGES: usize = 4;
+
+/// What the learner knew after its last frame, in the port's units.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LearnerSummary {
+    /// Learning progress, 0..=1000.
+    pub learned_permille: u16,
+    /// The model's stages, in order; `None` past the last.
+    pub stages: [Option<Stage>; MAX_STAGES],
+    pub counters: LearnerCounters,
+}
+
+impl LearnerSummary {
+    /// What `learner` knows now. The model does not expose a stage's
+    /// amplitude yet: it reads 0.
+    pub fn of<const N: usize>(learner: &Learner<N>) -> Self {
+        let g = learner.guider();
+        let mut stages = [None; MAX_STAGES];
+        for (i, slot) in stages.iter_mut().enumerate().take(N) {
+            let period_s = g.period_s(i);
+            // A stage not found yet has a NaN period: none, and none after.
+            if !period_s.is_finite() {
+                break;
+            }
+            *slot = Some(Stage {
+                // Saturating casts: a period is seconds to hours.
+                period_ms: libm::round(period_s * 1000.0) as u32,
+                amplitude_mas: 0,
+                gate_permille: libm::round(clamp(g.gate(i), 0.0, 1.0) * 1000.0) as u16,
+            });
+        }
+        LearnerSummary {
+            learned_permille: libm::round(clamp(g.learning_progress(), 0.0, 1.0) * 1000.0) as u16,
+            stages,
+            counters: learner.counters(),
+        }
+    }
+}
+
+/// Where a sync put the mount: the coordinates and the counters then.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct SyncPoint {
+    at: Equatorial,
+    steps: StepCounts,
+    at_us: u64,
+}
+
+/// The port's state beside the loop: the sync, the learner's summary,
+/// what identifies the firmware.
+#[derive(Clone, Debug)]
+pub struct PortState {
+    sync: Option<SyncPoint>,
+    /// RA arcsec per step, sidereal steps per second, Dec arcsec per step.
+    ra_arcsec_per_step: f64,
+    sidereal_sps: f64,
+    dec_arcsec_per_step: f64,
+    pub learner: LearnerSummary,
+    pub identity: Identity,
+    pub reset_cause: ResetCause,
+    reset_requested: bool,
+}
+
+impl PortState {
+    pub fn new(mount: &Mount, identity: Identity, reset_cause: ResetCause) -> Self {
+        let sidereal_sps = mount.sidereal_ra_steps_per_s_f64();
+        PortState {
+            sync: None,
+            ra_arcsec_per_step: SIDEREAL_ARCSEC_PER_S / sidereal_sps,
+            sidereal_sps,
+            dec_arcsec_per_step: f64::from(mount.arcsec_per_dec_step()),
+            learner: LearnerSummary::default(),
+            identity,
+            reset_cause,
+            reset_requested: false,
+        }
+    }
+
+    /// Whether a model reset was asked since the last call (`:~R#`).
+    pub fn take_reset_request(&mut self) -> bool {
+        core::mem::take(&mut self.reset_requested)
+    }
+
+    /// Where the mount points at `now_us` with the counters at `steps`:
+    /// the sync moved by the steps since (before any sync, 0h 0° at the
+    /// first question).
+    pub fn position(&mut self, steps: StepCounts, now_us: u64) -> Equatorial {
+        let sync = *self.sync.get_or_insert(SyncPoint {
+            at: Equatorial::default(),
+            steps,
+            at_us: now_us,
+        });
+        let dt_s = now_us.saturating_sub(sync.at_us) as f64 * 1e-6;
+        let beyond_tracking =
+            steps.ra.wrapping_sub(sync.steps.ra) as f64 - self.sidereal_sps * dt_s;
+        // 15 arcsec of rotation per second of RA.
+        let ra_s =
+            f64::from(sync.at.ra.seconds()) - beyond_tracking * self.ra_arcsec_per_step / 15.0;
+        let dec_arcsec = f64::from(sync.at.dec.arcsec())
+            + steps.dec.wrapping_sub(sync.steps.dec) as f64 * self.dec_arcsec_per_step;
+        // Rounded to the nearest second; the casts saturate (a NaN is 0).
+        let ra = Ra::wrapping_from_seconds(libm::round(ra_s) as i64);
+        let limit = 90.0 * 3600.0;
+        let dec_arcsec = libm::round(clamp(dec_arcsec, -limit, limit)) as i32;
+        let dec = Dec::from_arcsec(dec_arcsec).unwrap_or_default();
+        Equatorial { ra, dec }
+    }
+
+    /// From now on the mount points at `to`.
+    pub fn sync(&mut self, to: Equatorial, steps: StepCounts, now_us: u64) {
+        self.sync = Some(SyncPoint {
+            at: to,
+            steps,
+            at_us: now_us,
+        });
+    }
+}
+
+/// The mount as the port sees it at one moment: hand it to
+/// `Interpreter::feed` with the time and the counters of that moment.
+pub struct PortMount<'a> {
+    pub control: &'a mut ControlLoop,
+    pub state: &'a mut PortState,
+    pub now_us: u64,
+    pub steps: StepCounts,
+}
+
+fn st4_counter(c: &St4Counters, index: usize) -> Option<(&'static str, u32)> {
+    Some(match index {
+        0 => ("glitches", c.glitches),
+        1 => ("both_lines", c.both_lines),
+        2 => ("capped", c.capped),
+        3 => ("stuck", c.stuck),
+        4 => ("out_of_order", c.out_of_order),
+        5 => ("dropped", c.dropped),
+        _ => return None,
+    })
+}
+
+fn guiding_counter(c: &GuidingCounters, index: usize) -> Option<(&'static str, u32)> {
+    Some(match index {
+        0 => ("ra_pulses", c.ra_pulses),
+        1 => ("dec_pulses", c.dec_pulses),
+        2 => ("frames", c.frames),
+        3 => ("filled_frames", c.filled_frames),
+        4 => ("unmeasured_frames", c.unmeasured_frames),
+        5 => ("dithers", c.dithers),
+        6 => ("silences", c.silences),
+        7 => ("feed_forward_faded", c.feed_forward_faded),
+        8 => ("feed_forward_rejected", c.feed_forward_rejected),
+        9 => ("feed_forward_limited", c.feed_forward_limited),
+        10 => ("feed_forward_expired", c.feed_forward_expired),
+        11 => ("frames_dropped", c.frames_dropped),
+        12 => ("ra_clamped", c.ra_clamped),
+        13 => ("dec_clamped", c.dec_clamped),
+        14 => ("time_backwards", c.time_backwards),
+        15 => ("stray_ends", c.stray_ends),
+        _ => return None,
+    })
+}
+
+fn learner_counter(c: &LearnerCounters, index: usize) -> Option<(&'static str, u32)> {
+    Some(match index {
+        0 => ("frames", c.frames),
+        1 => ("learned", c.learned),
+        2 => ("not_learned", c.not_learned),
+        3 => ("dithers", c.dithers),
+        _ => return None,
+    })
+}
+
+/// Guiding's own counters, then the port motion's (ownership refusals).
+const GUIDING_COUNTERS: usize = 16;
+
+impl MountPort for PortMount<'_> {
+    fn position(&mut self) -> Equatorial {
+        self.state.position(self.steps, self.now_us)
+    }
+
+    fn sync(&mut self, to: Equatorial) {
+        self.state.sync(to, self.steps, self.now_us);
+    }
+
+    fn guide(&mut self, pulse: GuidePulse) {
+        // A refusal is counted by the loop; the port has no reply for it.
+        let _ = self.control.port_guide(pulse, self.now_us);
+    }
+
+    fn move_at(&mut self, line: Line, rate: ManualRate) {
+        let _ = self.control.port_move(line, rate, self.now_us);
+    }
+
+    fn stop(&mut self, axis: Axis) {
+        self.control.port_stop(axis, self.now_us);
+    }
+
+    fn set_tracking(&mut self, on: bool) {
+        self.control.set_tracking(on);
+    }
+
+    fn status(&mut self) -> Status {
+        let guiding = self.control.guiding();
+        let pulse = guiding.pulse_start_us(Axis::Ra).is_some()
+            || guiding.pulse_start_us(Axis::Dec).is_some();
+        let pec = if !self.control.feed_forward_on() {
+            PecState::Off
+        } else if guiding.feed_forward_now() != 0.0 {
+            PecState::Playing
+        } else {
+            PecState::Learning
+        };
+        Status {
+            tracking: self.control.tracking(),
+            guiding: pulse,
+            pec,
+        }
+    }
+
+    fn identity(&self) -> Identity {
+        self.state.identity
+    }
+
+    fn learning(&mut self) -> Learning {
+        let ff = self.control.guiding().feed_forward_now() * 1000.0;
+        Learning {
+            learned_permille: self.state.learner.learned_permille.min(1000),
+            // Saturating, NaN to 0: the feed-forward is finite and bounded
+            // by the guide rate anyway.
+            feed_forward_mas_per_s: libm::roundf(ff) as i32,
+            feed_forward_on: self.control.feed_forward_on(),
+        }
+    }
+
+    fn stage(&mut self, index: usize) -> Option<Stage> {
+        self.state.learner.stages.get(index).copied().flatten()
+    }
+
+    fn counter(&mut self, group: CounterGroup, index: usize) -> Option<Counter> {
+        let (name, value) = match group {
+            CounterGroup::St4 => st4_counter(&self.control.st4_counters(), index)?,
+            CounterGroup::Guiding => {
+                let c = self.control.guiding().counters();
+                match guiding_counter(&c, index) {
+                    Some(nv) => nv,
+                    None => self
+                        .control
+                        .port_counters()
+                        .get(index.checked_sub(GUIDING_COUNTERS)?)?,
+                }
+            }
+            CounterGroup::Learner => learner_counter(&self.state.learner.counters, index)?,
+            CounterGroup::Faults => match index {
+                0 => ("lost_edges", self.control.lost_edges()),
+                _ => return None,
+            },
+        };
+        Some(Counter { name, value })
+    }
+
+    fn step_counts(&mut self) -> StepCounts {
+        self.steps
+    }
+
+    fn set_feed_forward(&mut self, on: bool) {
+        self.control.set_feed_forward_on(on);
+    }
+
+    fn reset_model(&mut self) {
+        self.state.reset_requested = true;
+    }
+
+    fn reset_cause(&mut self) -> ResetCause {
+        self.state.reset_cause
+    }
+}
