@@ -80,28 +80,30 @@ struct Indi {
 }
 
 impl Indi {
+    /// `tool` (indi_setprop or indi_getprop) on this server for `prop` of
+    /// the device.
+    fn prop_command(&self, tool: &str, prop: &str) -> Command {
+        let mut c = Command::new(tool);
+        c.args([
+            "-p",
+            &self.port.to_string(),
+            "-t",
+            "3",
+            &format!("{DEVICE}.{prop}"),
+        ]);
+        c
+    }
+
     fn set(&self, prop: &str) {
         run(
-            Command::new("indi_setprop").args([
-                "-p",
-                &self.port.to_string(),
-                "-t",
-                "3",
-                &format!("{DEVICE}.{prop}"),
-            ]),
+            &mut self.prop_command("indi_setprop", prop),
             Duration::from_secs(10),
         );
     }
 
     fn get(&self, prop: &str) -> f64 {
         let out = run(
-            Command::new("indi_getprop").args([
-                "-p",
-                &self.port.to_string(),
-                "-t",
-                "3",
-                &format!("{DEVICE}.{prop}"),
-            ]),
+            &mut self.prop_command("indi_getprop", prop),
             Duration::from_secs(10),
         );
         out.trim()

@@ -125,12 +125,7 @@ impl Dec {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn show(f: impl Fn(&mut Reply)) -> std::string::String {
-        let mut r = Reply::new();
-        f(&mut r);
-        std::string::String::from_utf8(r.as_bytes().to_vec()).unwrap()
-    }
+    use crate::port::reply::show;
 
     #[test]
     fn ra_both_precisions() {

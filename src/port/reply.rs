@@ -127,6 +127,15 @@ pub fn int_len(n: i64) -> usize {
     len
 }
 
+/// What `write` puts into a fresh reply, as text (for the unit tests of
+/// the types that write themselves into replies).
+#[cfg(test)]
+pub(crate) fn show(write: impl Fn(&mut Reply)) -> std::string::String {
+    let mut r = Reply::new();
+    write(&mut r);
+    std::string::String::from_utf8(r.as_bytes().to_vec()).unwrap()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
