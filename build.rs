@@ -3,8 +3,42 @@
 
 use std::{env, fs, path::PathBuf};
 
+/// The build's date and time as LX200's `:GVD#` and `:GVT#` give them
+/// (`Nov 23 2026`, `06:30:00`): the commit's, so that a build is the same
+/// whenever it is made; a fixed stamp outside a git checkout.
+fn build_stamp() -> (String, String) {
+    let git = std::process::Command::new("git")
+        .args([
+            "log",
+            "-1",
+            "--format=%cd",
+            "--date=format-local:%b %d %Y|%H:%M:%S",
+        ])
+        .env("TZ", "UTC")
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .and_then(|o| String::from_utf8(o.stdout).ok());
+    match git
+        .as_deref()
+        .map(str::trim)
+        .and_then(|s| s.split_once('|'))
+    {
+        Some((date, time)) => (date.to_string(), time.to_string()),
+        None => ("Jan 01 2026".to_string(), "00:00:00".to_string()),
+    }
+}
+
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
+    for git in [".git/HEAD", ".git/refs/heads"] {
+        if std::path::Path::new(git).exists() {
+            println!("cargo:rerun-if-changed={git}");
+        }
+    }
+    let (date, time) = build_stamp();
+    println!("cargo:rustc-env=MKGP_BUILD_DATE={date}");
+    println!("cargo:rustc-env=MKGP_BUILD_TIME={time}");
     println!("cargo:rerun-if-changed=memory.x");
     if env::var_os("CARGO_FEATURE_FIRMWARE").is_none() {
         return;

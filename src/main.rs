@@ -19,6 +19,10 @@
 //!   RA step count and the newest feed-forward to `ControlLoop::wake`, sets
 //!   the rates it returns, moves completed frames to the learning task while
 //!   there is room, and logs.
+//! - **Command ports** ([`firmware::port_io`]): USB CDC-ACM (or the
+//!   Nucleo's ST-LINK UART) and a plain UART, in thread mode; their bytes
+//!   reach the guiding task through pipes, and the guiding task interprets
+//!   them on the loop (`hal::serial` has the pins).
 //! - **Thread mode** (lowest): the learning task
 //!   ([`firmware::learning_task`]) runs the model, a `Learner<2>` in a
 //!   static, once per frame, and signals the feed-forward to the guiding
@@ -94,7 +98,19 @@ async fn main(spawner: Spawner) {
     let ra = StepAxis::new(board.ra, RA_DIR_FORWARD_HIGH);
     let dec = StepAxis::new(board.dec, DEC_DIR_FORWARD_HIGH);
 
-    let running = start(spawner, p.TIM2, p.IWDG, ra, dec, board.st4);
+    let running = start(
+        spawner,
+        p.TIM2,
+        p.IWDG,
+        ra,
+        dec,
+        board.st4,
+        last_reset.cause,
+    );
+    // The ports answer even with the motors disabled: they tell why.
+    if let Err(which) = firmware::port_io::start(spawner, board.ports) {
+        defmt::error!("command port: {} did not start", which);
+    }
     if running.is_err() {
         defmt::error!("motors stay disabled; fix the configuration and reflash");
     }
@@ -127,6 +143,7 @@ fn start(
     ra: StepAxis,
     dec: StepAxis,
     st4_pins: hal::board::St4Pins,
+    reset_cause: mkgp_mount::safety::reset_cause::ResetCause,
 ) -> Result<(), ()> {
     let config = MountConfig::default();
     let mount = match config.validate() {
@@ -172,7 +189,7 @@ fn start(
     let high = EXECUTOR_HIGH.start(interrupt::SDIO);
     // From here on a hung guiding task resets the board.
     let watchdog = hal::reset::Watchdog::start(iwdg, WATCHDOG_TIMEOUT_US);
-    match guiding_task(edges, mount, watchdog) {
+    match guiding_task(edges, mount, watchdog, reset_cause) {
         Ok(token) => high.spawn(token),
         Err(_) => {
             defmt::error!("guiding task could not be spawned");

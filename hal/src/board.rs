@@ -22,10 +22,9 @@
 //! | Dec ENABLE (low)| PB5 | PA9, D8 | PE12 |
 //! | status LED      | PC13 (active low) | PA5 = LD2, D13 (active high) | PD12 = LD4 green (active high) |
 //!
-//! Left free on purpose: USART1 PA9/PA10 and SPI1 PA5-PA7 on the Black Pill
-//! (serial console, driver configuration), USART2 PA2/PA3 (the ST-LINK
-//! virtual COM port) on the Nucleo, and the audio codec, accelerometer and
-//! USB pins on the Discovery.
+//! The command port's USB and UART pins are in [`crate::serial`]'s table.
+//! Left free on purpose: SPI1 PA5-PA7 on the Black Pill (driver
+//! configuration), and the audio codec and accelerometer on the Discovery.
 //!
 //! The types below name the concrete embassy peripherals of the selected
 //! chip; [`take_board!`](crate::take_board) moves them out of the
@@ -132,12 +131,27 @@ pub type RaPins = AxisPins<pins::RaStep, pins::RaDir, pins::RaEnable>;
 /// Declination axis pins.
 pub type DecPins = AxisPins<pins::DecStep, pins::DecDir, pins::DecEnable>;
 
+/// The command port's pins on this board (`crate::serial` has the map).
+#[cfg(any(feature = "stm32f411ce", feature = "stm32f407vg"))]
+pub struct PortPins {
+    pub usb: crate::serial::UsbPins,
+    pub aux: crate::serial::AuxPins,
+}
+
+/// The command port's pins on this board (`crate::serial` has the map).
+#[cfg(feature = "stm32f446re")]
+pub struct PortPins {
+    pub vcp: crate::serial::VcpPins,
+    pub aux: crate::serial::AuxPins,
+}
+
 /// Every pin the firmware uses on this board.
 pub struct Board {
     pub st4: St4Pins,
     pub ra: RaPins,
     pub dec: DecPins,
     pub led: Peri<'static, pins::Led>,
+    pub ports: PortPins,
 }
 
 /// Moves the board's pins out of an `embassy_stm32::Peripherals` binding and
@@ -174,6 +188,18 @@ macro_rules! take_board {
                 enable: $p.PB5,
             },
             led: $p.PC13,
+            ports: $crate::board::PortPins {
+                usb: $crate::serial::UsbPins {
+                    usb: $p.USB_OTG_FS,
+                    dp: $p.PA12,
+                    dm: $p.PA11,
+                },
+                aux: $crate::serial::UartPins {
+                    uart: $p.USART1,
+                    tx: $p.PA9,
+                    rx: $p.PA10,
+                },
+            },
         }
     };
 }
@@ -207,6 +233,18 @@ macro_rules! take_board {
                 enable: $p.PA9,
             },
             led: $p.PA5,
+            ports: $crate::board::PortPins {
+                vcp: $crate::serial::UartPins {
+                    uart: $p.USART2,
+                    tx: $p.PA2,
+                    rx: $p.PA3,
+                },
+                aux: $crate::serial::UartPins {
+                    uart: $p.USART6,
+                    tx: $p.PC6,
+                    rx: $p.PC7,
+                },
+            },
         }
     };
 }
@@ -240,6 +278,18 @@ macro_rules! take_board {
                 enable: $p.PE12,
             },
             led: $p.PD12,
+            ports: $crate::board::PortPins {
+                usb: $crate::serial::UsbPins {
+                    usb: $p.USB_OTG_FS,
+                    dp: $p.PA12,
+                    dm: $p.PA11,
+                },
+                aux: $crate::serial::UartPins {
+                    uart: $p.USART2,
+                    tx: $p.PA2,
+                    rx: $p.PA3,
+                },
+            },
         }
     };
 }

@@ -13,6 +13,7 @@
 //!   [`stepper::force_drivers_off`] for the fault path.
 //! - [`reset`]: the reset flags, a reset on demand and the independent
 //!   watchdog.
+//! - [`serial`]: the command port's transports, USB CDC-ACM and UARTs.
 //!
 //! This crate knows the hardware only; what edges mean and how many steps to
 //! make is the `mkgp-mount` library's business, glued together in the
@@ -41,6 +42,7 @@ compile_error!("mount-hal: select only one chip feature");
 pub mod board;
 pub mod clocks;
 pub mod reset;
+pub mod serial;
 pub mod st4;
 pub mod stepper;
 

@@ -125,8 +125,9 @@ impl Drop for Pty {
 struct Out(Vec<u8>);
 
 impl ReplySink for Out {
-    fn send(&mut self, reply: &[u8]) {
+    fn send(&mut self, reply: &[u8]) -> bool {
         self.0.extend_from_slice(reply);
+        true
     }
 }
 
@@ -253,8 +254,25 @@ pub fn serve(opts: Options, stop: &AtomicBool, ready: impl FnOnce(&str)) -> io::
                 client = None;
             }
         }
+        if let Some(learned) = rig.take_learned() {
+            let line = learned.telemetry(rig.now_us);
+            // A client that does not read loses the line (the board drops
+            // it whole and counts it).
+            if let Some((p, port)) = &mut pty {
+                let mut out = Out::default();
+                port.send_telemetry(&line, &mut out);
+                let _ = p.master.write_all(&out.0);
+            }
+            if let Some((s, port)) = &mut client {
+                let mut out = Out::default();
+                port.send_telemetry(&line, &mut out);
+                if s.write_all(&out.0).is_err() {
+                    client = None;
+                }
+            }
+        }
         if state.take_reset_request() {
-            eprintln!("guide-sim mount: a model reset was asked; the simulator keeps its model");
+            rig.reset_model();
         }
     }
     Ok(())

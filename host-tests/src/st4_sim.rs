@@ -42,12 +42,12 @@
 use crate::cases::Case;
 use crate::guide_algorithm::{GuideAlgorithm, Hysteresis};
 use crate::noise::Gaussian;
-use mkgp_mount::control_loop::port_mount::{LearnerSummary, PortMount, PortState};
+use mkgp_mount::control_loop::port_mount::{LearnedFrame, LearnerSummary, PortMount, PortState};
 use mkgp_mount::control_loop::st4_feed::{EdgeQueue, EdgeSource, RawEdge};
 use mkgp_mount::control_loop::stepping::AxisStepper;
 use mkgp_mount::control_loop::{ControlLoop, FrameRecord};
 use mkgp_mount::mount::config::{Mount, MountConfig, SIDEREAL_ARCSEC_PER_S};
-use mkgp_mount::mount::frame::{FeedForward, Frame, Rates};
+use mkgp_mount::mount::frame::{Frame, Rates};
 use mkgp_mount::mount::guiding::{Guiding, GuidingCounters, FRAME_QUEUE};
 use mkgp_mount::mount::learner::{Learner, LearnerCounters};
 use mkgp_mount::mount::st4::{Line, St4Counters};
@@ -93,11 +93,18 @@ enum AnyLearner {
 }
 
 impl AnyLearner {
-    fn learn(&mut self, f: Frame) -> Option<FeedForward> {
+    /// The frame learned, as the port reports it (the feed-forward in it).
+    fn learn(&mut self, f: Frame) -> Option<LearnedFrame> {
         match self {
             AnyLearner::None => None,
-            AnyLearner::One(l) => Some(l.learn(f)),
-            AnyLearner::Two(l) => Some(l.learn(f)),
+            AnyLearner::One(l) => {
+                let ff = l.learn(f);
+                Some(LearnedFrame::of(l, &f, ff))
+            }
+            AnyLearner::Two(l) => {
+                let ff = l.learn(f);
+                Some(LearnedFrame::of(l, &f, ff))
+            }
         }
     }
     fn summary(&self) -> LearnerSummary {
@@ -113,6 +120,14 @@ impl AnyLearner {
             AnyLearner::None => LearnerCounters::default(),
             AnyLearner::One(l) => l.counters(),
             AnyLearner::Two(l) => l.counters(),
+        }
+    }
+
+    fn reset(&mut self) {
+        match self {
+            AnyLearner::None => {}
+            AnyLearner::One(l) => l.reset(),
+            AnyLearner::Two(l) => l.reset(),
         }
     }
 }
@@ -171,33 +186,36 @@ struct LearningTask {
     learner: AnyLearner,
     /// The frame queue between the tasks.
     frames: VecDeque<FrameRecord>,
-    /// The feed-forward being computed and when it is ready.
-    busy: Option<(u64, Option<FeedForward>)>,
-    /// The newest feed-forward not yet installed (the board's signal).
-    ready: Option<FeedForward>,
+    /// The frame being learned and when its feed-forward is ready.
+    busy: Option<(u64, Option<LearnedFrame>)>,
+    /// The newest learned frame not yet taken (the board's signal).
+    ready: Option<LearnedFrame>,
 }
 
 impl LearningTask {
     /// Finishes the inference due by `now_us`, then starts the next.
     fn run(&mut self, now_us: u64, record: &mut Vec<Frame>) {
-        if let Some((done_us, ff)) = self.busy {
-            if done_us > now_us {
-                return;
-            }
-            self.busy = None;
-            if ff.is_some() {
-                self.ready = ff;
+        if self
+            .busy
+            .as_ref()
+            .is_some_and(|(done_us, _)| *done_us > now_us)
+        {
+            return;
+        }
+        if let Some((_, learned)) = self.busy.take() {
+            if learned.is_some() {
+                self.ready = learned;
             }
         }
         if let Some(r) = self.frames.pop_front() {
             record.push(r.frame);
-            let ff = self.learner.learn(r.frame);
-            self.busy = Some((now_us + INFERENCE_US, ff));
+            let learned = self.learner.learn(r.frame);
+            self.busy = Some((now_us + INFERENCE_US, learned));
         }
     }
 
     fn next_event_us(&self) -> Option<u64> {
-        self.busy.map(|(t, _)| t)
+        self.busy.as_ref().map(|(t, _)| *t)
     }
 }
 
@@ -233,6 +251,9 @@ pub struct Rig {
     pub frames: Vec<Frame>,
     /// Every feed-forward installed (for tests): (time us, rate).
     pub feed_forwards: Vec<(u64, f32)>,
+    /// The newest learned frame the guiding task took, for the command
+    /// ports' telemetry ([`Rig::take_learned`]).
+    learned: Option<LearnedFrame>,
 }
 
 impl Rig {
@@ -293,6 +314,7 @@ impl Rig {
             },
             frames: Vec::new(),
             feed_forwards: Vec::new(),
+            learned: None,
         };
         rig.note_rates(rates);
         rig
@@ -303,6 +325,18 @@ impl Rig {
     }
 
     /// What the learner knows now, for the command port.
+    /// The newest frame learned since the last call: the board's guiding
+    /// task sends its telemetry line to the ports that asked.
+    pub fn take_learned(&mut self) -> Option<LearnedFrame> {
+        self.learned.take()
+    }
+
+    /// A model reset asked on a command port: the board's learning task
+    /// carries it out before its next frame.
+    pub fn reset_model(&mut self) {
+        self.learning.learner.reset();
+    }
+
     pub fn learner_summary(&self) -> LearnerSummary {
         self.learning.learner.summary()
     }
@@ -443,10 +477,14 @@ impl Rig {
             now_us: now,
             levels: &mut self.levels,
         };
-        let ff = self.learning.ready.take();
+        let learned = self.learning.ready.take();
+        let ff = learned.as_ref().map(|l| l.feed_forward);
         let wake = self.control.wake(now, self.ra.steps(), &mut due, ff);
         if let Some(ff) = ff {
             self.feed_forwards.push((now, ff.rate_arcsec_per_s));
+        }
+        if learned.is_some() {
+            self.learned = learned;
         }
         if let Some(r) = wake.rates {
             self.ra.set_rate(r.ra_steps_per_s);

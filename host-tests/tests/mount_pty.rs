@@ -1,7 +1,8 @@
 //! `guide-sim mount --pty`: the virtual mount driven through its pty with
 //! raw LX200 bytes, as a client would: the connect queries, a sync, timed
-//! guides read back through the step counters and our `:~` queries, and a
-//! clean exit on SIGTERM (the link removed).
+//! guides read back through the step counters and our `:~` queries, the
+//! telemetry line, a model reset, and a clean exit on SIGTERM (the link
+//! removed).
 
 use std::fs::{File, OpenOptions};
 use std::io::{BufRead, BufReader, ErrorKind, Read, Write};
@@ -177,6 +178,24 @@ fn the_virtual_mount_answers_lx200_on_its_pty() {
         ask(&mut pty, ":~Cg16#", 1),
         "port_pulses=2 manual_moves=0 port_refused=0 st4_refused=0#"
     );
+
+    // Telemetry: asked for, a line per learned frame arrives unasked.
+    assert_eq!(ask_bytes(&mut pty, ":~T1#", 1), "1");
+    ask(&mut pty, ":Mge300#", 0);
+    std::thread::sleep(Duration::from_millis(2000));
+    let line = ask(&mut pty, ":Mgw300#", 1);
+    let line = line.trim_start_matches(|c| c != '~');
+    assert!(
+        line.starts_with("~T t_ms=") && line.contains(" learn_pm=") && line.ends_with('#'),
+        "{line:?}"
+    );
+    assert_eq!(ask_bytes(&mut pty, ":~T0#", 1), "1");
+
+    // A model reset asked on the port: the model starts again.
+    std::thread::sleep(Duration::from_millis(200));
+    assert_eq!(ask_bytes(&mut pty, ":~R#", 1), "1");
+    let l = ask(&mut pty, ":~L#", 1);
+    assert!(l.starts_with("learn_pm=0 "), "{l}");
 
     // SIGTERM: a clean exit, the link removed.
     // SAFETY: kill(2) on our own child's pid.

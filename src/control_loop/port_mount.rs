@@ -16,9 +16,12 @@
 //!   after each frame it learned; a model reset asked on the port is a
 //!   request the caller takes ([`PortState::take_reset_request`]).
 
+use heapless::Vec;
+
 use crate::control_loop::ControlLoop;
 use crate::model::numeric::clamp;
 use crate::mount::config::{Mount, SIDEREAL_ARCSEC_PER_S};
+use crate::mount::frame::{FeedForward, Frame};
 use crate::mount::guiding::GuidingCounters;
 use crate::mount::learner::{Learner, LearnerCounters};
 use crate::mount::st4::St4Counters;
@@ -27,18 +30,19 @@ use crate::port::mount_port::{
     Axis, Counter, CounterGroup, GuidePulse, Identity, Learning, Line, ManualRate, MountPort,
     PecState, Stage, Status, StepCounts,
 };
+use crate::port::telemetry::TelemetryFrame;
 use crate::safety::reset_cause::ResetCause;
 
 /// Stages a [`LearnerSummary`] holds (the firmware's model has two).
 pub const MAX_STAGES: usize = 4;
 
 /// What the learner knew after its last frame, in the port's units.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct LearnerSummary {
     /// Learning progress, 0..=1000.
     pub learned_permille: u16,
-    /// The model's stages, in order; `None` past the last.
-    pub stages: [Option<Stage>; MAX_STAGES],
+    /// The stages found so far, in order.
+    pub stages: Vec<Stage, MAX_STAGES>,
     pub counters: LearnerCounters,
 }
 
@@ -47,24 +51,80 @@ impl LearnerSummary {
     /// amplitude yet: it reads 0.
     pub fn of<const N: usize>(learner: &Learner<N>) -> Self {
         let g = learner.guider();
-        let mut stages = [None; MAX_STAGES];
-        for (i, slot) in stages.iter_mut().enumerate().take(N) {
+        let mut stages = Vec::new();
+        for i in 0..N {
             let period_s = g.period_s(i);
             // A stage not found yet has a NaN period: none, and none after.
             if !period_s.is_finite() {
                 break;
             }
-            *slot = Some(Stage {
+            let stage = Stage {
                 // Saturating casts: a period is seconds to hours.
                 period_ms: libm::round(period_s * 1000.0) as u32,
                 amplitude_mas: 0,
                 gate_permille: libm::round(clamp(g.gate(i), 0.0, 1.0) * 1000.0) as u16,
-            });
+            };
+            if stages.push(stage).is_err() {
+                break;
+            }
         }
         LearnerSummary {
             learned_permille: libm::round(clamp(g.learning_progress(), 0.0, 1.0) * 1000.0) as u16,
             stages,
             counters: learner.counters(),
+        }
+    }
+}
+
+/// Arcseconds to milliarcseconds, rounded; the cast saturates and a NaN
+/// reads 0.
+fn mas(arcsec: f64) -> i32 {
+    libm::round(arcsec * 1000.0) as i32
+}
+
+/// A frame the learner has just learned, as the port reports it: the
+/// summary its queries answer from, and the telemetry line's values.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LearnedFrame {
+    pub summary: LearnerSummary,
+    /// The feed-forward the learner returned for the frame.
+    pub feed_forward: FeedForward,
+    pub gear_time_s: f64,
+    /// The frame's observed gear error, arcsec.
+    pub observation_arcsec: f32,
+    /// The model's predicted change of the gear error over the next
+    /// frame, arcsec.
+    pub prediction_arcsec: f32,
+}
+
+impl LearnedFrame {
+    /// `frame` as `learner` has just learned it, with the feed-forward it
+    /// returned.
+    pub fn of<const N: usize>(
+        learner: &Learner<N>,
+        frame: &Frame,
+        feed_forward: FeedForward,
+    ) -> Self {
+        LearnedFrame {
+            summary: LearnerSummary::of(learner),
+            feed_forward,
+            gear_time_s: frame.gear_time_s,
+            observation_arcsec: frame.gear_error_arcsec,
+            prediction_arcsec: learner.guider().prediction(),
+        }
+    }
+
+    /// The telemetry line's values, sent at `time_us` (the board's clock).
+    pub fn telemetry(&self, time_us: u64) -> TelemetryFrame<'_> {
+        TelemetryFrame {
+            time_ms: time_us / 1000,
+            // Saturating, NaN to 0: gear time is never negative.
+            gear_time_ms: libm::round(self.gear_time_s * 1000.0) as u64,
+            observation_mas: mas(self.observation_arcsec.into()),
+            prediction_mas: mas(self.prediction_arcsec.into()),
+            feed_forward_mas_per_s: mas(self.feed_forward.rate_arcsec_per_s.into()),
+            learned_permille: self.summary.learned_permille,
+            stages: &self.summary.stages,
         }
     }
 }
@@ -252,18 +312,15 @@ impl MountPort for PortMount<'_> {
     }
 
     fn learning(&mut self) -> Learning {
-        let ff = self.control.guiding().feed_forward_now() * 1000.0;
         Learning {
             learned_permille: self.state.learner.learned_permille.min(1000),
-            // Saturating, NaN to 0: the feed-forward is finite and bounded
-            // by the guide rate anyway.
-            feed_forward_mas_per_s: libm::roundf(ff) as i32,
+            feed_forward_mas_per_s: mas(self.control.guiding().feed_forward_now().into()),
             feed_forward_on: self.control.feed_forward_on(),
         }
     }
 
     fn stage(&mut self, index: usize) -> Option<Stage> {
-        self.state.learner.stages.get(index).copied().flatten()
+        self.state.learner.stages.get(index).copied()
     }
 
     fn counter(&mut self, group: CounterGroup, index: usize) -> Option<Counter> {

@@ -31,8 +31,9 @@ impl EdgeSource for Edges {
 struct Text(String);
 
 impl ReplySink for Text {
-    fn send(&mut self, reply: &[u8]) {
+    fn send(&mut self, reply: &[u8]) -> bool {
         self.0.push_str(core::str::from_utf8(reply).unwrap());
+        true
     }
 }
 
@@ -325,11 +326,12 @@ fn the_port_reads_the_loop_and_the_learner_summary() {
     assert_eq!(r.ask(":GVP#:GVN#"), "mkgp-mount#0.1.0#");
     assert_eq!(r.ask(":~L#"), "learn_pm=0 ff_mas_s=0 ff_on=1 stages=0#");
     r.state.learner.learned_permille = 420;
-    r.state.learner.stages[0] = Some(crate::port::mount_port::Stage {
+    let stage = crate::port::mount_port::Stage {
         period_ms: 478_689,
         amplitude_mas: 3_000,
         gate_permille: 900,
-    });
+    };
+    r.state.learner.stages.push(stage).unwrap();
     r.state.learner.counters.frames = 7;
     assert_eq!(r.ask(":~L#"), "learn_pm=420 ff_mas_s=0 ff_on=1 stages=1#");
     assert_eq!(

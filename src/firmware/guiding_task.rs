@@ -1,11 +1,14 @@
 //! The guiding task, on the high-priority executor: moves the hal's edges,
 //! the time, the step count and the feed-forward into the library's
-//! `ControlLoop`, sets the rates it returns and hands the frames on.
+//! `ControlLoop`, sets the rates it returns and hands the frames on. It
+//! also serves the command ports: their bytes go to each port's
+//! `Interpreter` on the loop (`PortMount`), and each learned frame's
+//! telemetry line to the ports that asked for it.
 
 use core::cell::{Cell, RefCell};
 
 use embassy_executor::InterruptExecutor;
-use embassy_futures::select::{select, Either};
+use embassy_futures::select::{select3, Either3};
 use embassy_stm32::interrupt;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
@@ -15,19 +18,23 @@ use embassy_time::{Instant, Timer};
 
 use hal::reset::Watchdog;
 use hal::st4::{PinEdge, St4Edges};
+use mkgp_mount::control_loop::port_mount::{LearnedFrame, PortMount, PortState};
 use mkgp_mount::control_loop::st4_feed::{EdgeQueue, EdgeSource, RawEdge};
 use mkgp_mount::control_loop::storm::StormGuard;
 use mkgp_mount::control_loop::{ControlLoop, FrameRecord};
 use mkgp_mount::mount::config::Mount;
-use mkgp_mount::mount::frame::FeedForward;
 use mkgp_mount::mount::guiding::FRAME_QUEUE;
 use mkgp_mount::mount::st4::{Line, St4Counters};
+use mkgp_mount::port::mount_port::{Identity, StepCounts};
+use mkgp_mount::port::Interpreter;
 use mkgp_mount::safety::fault_record::FaultRecord;
 use mkgp_mount::safety::liveness::{Liveness, Progress, Verdict};
+use mkgp_mount::safety::reset_cause::ResetCause;
 
 use crate::firmware::fault::enter_safe_state;
 use crate::firmware::learning_task::frames_learned;
 use crate::firmware::log;
+use crate::firmware::port_io::{LinkSink, CHUNK, LINKS, PORTS, RECEIVED};
 use crate::firmware::step_tick::{self, set_rates, step_counts};
 
 pub static EXECUTOR_HIGH: InterruptExecutor = InterruptExecutor::new();
@@ -49,9 +56,24 @@ pub static ST4_COUNTERS: Mutex<CriticalSectionRawMutex, Cell<Option<St4Counters>
 /// learner falls further behind (counted).
 pub static FRAMES: Channel<CriticalSectionRawMutex, FrameRecord, FRAME_QUEUE> = Channel::new();
 
-/// The newest feed-forward, from the learning task to the guiding task (an
-/// older one not yet installed is replaced).
-pub static FEED_FORWARD: Signal<CriticalSectionRawMutex, FeedForward> = Signal::new();
+/// The newest learned frame with its feed-forward, from the learning task
+/// to the guiding task (an older one not yet taken is replaced).
+pub static LEARNED: Signal<CriticalSectionRawMutex, LearnedFrame> = Signal::new();
+
+/// A model reset asked on a command port, for the learning task.
+pub static RESET_MODEL: Signal<CriticalSectionRawMutex, ()> = Signal::new();
+
+/// What the ports report as the firmware.
+const IDENTITY: Identity = Identity {
+    product: env!("CARGO_PKG_NAME"),
+    version: env!("CARGO_PKG_VERSION"),
+    date: env!("MKGP_BUILD_DATE"),
+    time: env!("MKGP_BUILD_TIME"),
+};
+
+/// Received bytes one wake-up interprets per port at most: a flood waits
+/// in its pipe, and the edges and rates are never late for it.
+const RX_PER_WAKE: usize = 4 * CHUNK;
 
 /// The ST4 edge budgets: asked by the EXTI interrupt before it queues an
 /// edge, polled by the guiding task for masked lines. Borrowed only inside
@@ -125,10 +147,74 @@ fn progress() -> Progress {
     }
 }
 
-/// Moves the hal's edges and the time into the loop, and its rates out;
-/// feeds the watchdog while the liveness check finds everything alive.
+/// The command ports beside the loop: one interpreter each, the state
+/// they share.
+struct Ports {
+    interpreters: [Interpreter; PORTS],
+    state: PortState,
+}
+
+impl Ports {
+    /// Interprets what arrived on each port (at most [`RX_PER_WAKE`]
+    /// bytes), or lets a stale half command time out.
+    fn serve(&mut self, lp: &mut ControlLoop, now_us: u64) {
+        let (ra, dec) = step_counts();
+        let mut mount = PortMount {
+            control: lp,
+            state: &mut self.state,
+            now_us,
+            steps: StepCounts { ra, dec },
+        };
+        let mut more = false;
+        for (port, link) in self.interpreters.iter_mut().zip(&LINKS) {
+            let mut buf = [0u8; CHUNK];
+            let mut sink = LinkSink(link);
+            port.feed(&[], now_us, &mut mount, &mut sink);
+            let mut taken = 0;
+            while taken < RX_PER_WAKE {
+                let n = link.take_received(&mut buf);
+                if n == 0 {
+                    break;
+                }
+                port.feed(buf.get(..n).unwrap_or(&[]), now_us, &mut mount, &mut sink);
+                taken += n;
+            }
+            more |= taken >= RX_PER_WAKE;
+        }
+        // The rest at the next wake-up, after this one's edges and rates.
+        if more {
+            RECEIVED.signal(());
+        }
+        if self.state.take_reset_request() {
+            RESET_MODEL.signal(());
+        }
+    }
+
+    /// A learned frame: the summary for the queries, its telemetry line to
+    /// the ports that asked.
+    fn learned(&mut self, learned: &LearnedFrame, now_us: u64) {
+        self.state.learner = learned.summary.clone();
+        let line = learned.telemetry(now_us);
+        for (port, link) in self.interpreters.iter_mut().zip(&LINKS) {
+            port.send_telemetry(&line, &mut LinkSink(link));
+        }
+    }
+}
+
+/// Moves the hal's edges, the ports' bytes and the time into the loop, and
+/// its rates out; feeds the watchdog while the liveness check finds
+/// everything alive.
 #[embassy_executor::task]
-pub async fn guiding_task(mut edges: St4Edges, mount: Mount, mut watchdog: Watchdog) {
+pub async fn guiding_task(
+    mut edges: St4Edges,
+    mount: Mount,
+    mut watchdog: Watchdog,
+    reset_cause: ResetCause,
+) {
+    let mut ports = Ports {
+        interpreters: [Interpreter::new(), Interpreter::new()],
+        state: PortState::new(&mount, IDENTITY, reset_cause),
+    };
     let (ra_steps, _) = step_counts();
     let (mut lp, rates) = ControlLoop::start(&mount, Instant::now().as_micros(), ra_steps);
     let rates = set_rates(rates);
@@ -144,20 +230,24 @@ pub async fn guiding_task(mut edges: St4Edges, mount: Mount, mut watchdog: Watch
     );
     loop {
         let wake_at = Instant::from_micros(lp.next_wake_us().min(liveness.next_check_us()));
-        let first = match select(edges.next(), Timer::at(wake_at)).await {
-            Either::First(edge) => Some(edge),
-            Either::Second(()) => None,
+        let first = match select3(edges.next(), Timer::at(wake_at), RECEIVED.wait()).await {
+            Either3::First(edge) => Some(edge),
+            Either3::Second(()) | Either3::Third(()) => None,
         };
         // Every edge stamped before `now` is in the queue by now: the EXTI
         // interrupt preempts this task, and it stamps and queues in one go.
         let now_us = Instant::now().as_micros();
         poll_masked(&mut edges, now_us);
+        // Before the wake-up: the motion a command starts is set by it.
+        ports.serve(&mut lp, now_us);
         let (ra_steps, _) = step_counts();
         let mut source = HalEdges {
             first,
             queue: &mut edges,
         };
-        let wake = lp.wake(now_us, ra_steps, &mut source, FEED_FORWARD.try_take());
+        let learned = LEARNED.try_take();
+        let feed_forward = learned.as_ref().map(|l| l.feed_forward);
+        let wake = lp.wake(now_us, ra_steps, &mut source, feed_forward);
         if let Some(rates) = wake.rates {
             set_rates(rates);
         }
@@ -171,6 +261,9 @@ pub async fn guiding_task(mut edges: St4Edges, mount: Mount, mut watchdog: Watch
         }
         if let Some(c) = wake.st4_counters {
             ST4_COUNTERS.lock(|s| s.set(Some(c)));
+        }
+        if let Some(learned) = &learned {
+            ports.learned(learned, now_us);
         }
         log::wake(&wake);
         match liveness.check(now_us, progress()) {

@@ -5,10 +5,11 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use static_cell::StaticCell;
 
+use mkgp_mount::control_loop::port_mount::LearnedFrame;
 use mkgp_mount::mount::config::Mount;
 use mkgp_mount::mount::learner::Learner;
 
-use crate::firmware::guiding_task::{FEED_FORWARD, FRAMES};
+use crate::firmware::guiding_task::{FRAMES, LEARNED, RESET_MODEL};
 use crate::firmware::log;
 use crate::STAGES;
 
@@ -31,15 +32,20 @@ pub fn make_learner(mount: &Mount) -> Option<&'static mut Learner<STAGES>> {
 }
 
 /// Runs the model once per guide frame (the longest thing that runs here)
-/// and hands the feed-forward to the guiding task. Everything else preempts
-/// it.
+/// and hands the learned frame with its feed-forward to the guiding task.
+/// A model reset asked on a port is carried out before the next frame.
+/// Everything else preempts it.
 #[embassy_executor::task]
 pub async fn learning_task(learner: &'static mut Learner<STAGES>) {
     loop {
         let msg = FRAMES.receive().await;
+        if RESET_MODEL.try_take().is_some() {
+            learner.reset();
+            defmt::warn!("model reset, as asked on the command port");
+        }
         let ff = learner.learn(msg.frame);
         FRAMES_LEARNED.fetch_add(1, Ordering::Relaxed);
-        FEED_FORWARD.signal(ff);
+        LEARNED.signal(LearnedFrame::of(learner, &msg.frame, ff));
         log::frame(learner, &msg, &ff);
     }
 }

@@ -9,6 +9,7 @@ use mkgp_mount::mount::learner::Learner;
 use mkgp_mount::mount::st4::{Axis, Direction, St4Counters, St4Event};
 
 use crate::firmware::guiding_task::{storms, ST4_COUNTERS};
+use crate::firmware::port_io::LINKS;
 use crate::firmware::step_tick::{rates_set, step_counts};
 use crate::STAGES;
 
@@ -177,5 +178,11 @@ pub fn status() {
     let storms = storms();
     if storms > 0 {
         defmt::warn!("ST4: {} edge storms (line masked until quiet)", storms);
+    }
+    for (port, link) in LINKS.iter().enumerate() {
+        let errors = link.errors();
+        if errors > 0 {
+            defmt::warn!("command port {}: {} receive errors", port, errors);
+        }
     }
 }

@@ -5,4 +5,5 @@ pub mod fault;
 pub mod guiding_task;
 pub mod learning_task;
 pub mod log;
+pub mod port_io;
 pub mod step_tick;

@@ -96,6 +96,14 @@ impl<const N: usize> Learner<N> {
         self.counters
     }
 
+    /// Forgets what the model learned (asked on the command port): it
+    /// starts again from its prior with the next frame. The counters go on.
+    pub fn reset(&mut self) {
+        self.guider.reset();
+        self.last_gear_s = None;
+        self.settling = 0;
+    }
+
     /// Whether the model refused the last frame: a bad observation or
     /// frame time, counted in its faults since `before`.
     fn refused_since(&self, before: Faults) -> bool {
@@ -228,5 +236,37 @@ mod tests {
         let c = l.counters();
         assert_eq!((c.frames, c.learned, c.not_learned), (21, 20, 1));
         assert_eq!(l.guider().faults().bad_input, 1);
+    }
+
+    /// A reset model learns as a new one does: after 400 frames of a worm,
+    /// a reset learner and a fresh one give the same feed-forwards.
+    #[test]
+    fn a_reset_learner_starts_again() {
+        let m = MountConfig::default().validate().unwrap();
+        let frame = |k: u32| {
+            let t = 2.0 * k as f64;
+            Frame {
+                gear_time_s: t,
+                interval_s: if k == 0 { 0.0 } else { 2.0 },
+                kind: FrameKind::Measured,
+                gear_error_arcsec: (3.0 * (t * core::f64::consts::TAU / 480.0).sin()) as f32,
+                applied_arcsec: 0.0,
+                pulse_arcsec: 0.0,
+                filled: false,
+            }
+        };
+        let mut used: std::boxed::Box<Learner<2>> = std::boxed::Box::new(Learner::new(&m));
+        for k in 0..400 {
+            used.learn(frame(k));
+        }
+        let progress = used.guider().learning_progress();
+        assert!(progress > 0.0, "{progress}");
+        used.reset();
+        assert_eq!(used.guider().learning_progress(), 0.0);
+        let mut fresh: std::boxed::Box<Learner<2>> = std::boxed::Box::new(Learner::new(&m));
+        for k in 0..300 {
+            assert_eq!(used.learn(frame(k)), fresh.learn(frame(k)), "frame {k}");
+        }
+        assert_eq!(used.counters().frames, 700);
     }
 }

@@ -33,6 +33,8 @@ pub struct PortCounters {
     pub bad_values: u32,
     /// Replies cut because they did not fit (none should be: a bug).
     pub replies_cut: u32,
+    /// Replies and telemetry lines the transport had no room for.
+    pub replies_dropped: u32,
 }
 
 impl PortCounters {
@@ -47,6 +49,7 @@ impl PortCounters {
             5 => ("unknown", self.unknown),
             6 => ("bad_values", self.bad_values),
             7 => ("replies_cut", self.replies_cut),
+            8 => ("replies_dropped", self.replies_dropped),
             _ => return None,
         };
         Some(Counter { name, value })
@@ -116,7 +119,7 @@ impl Interpreter {
                 None => {}
                 Some(Frame::Ack) => {
                     // Polar: an equatorial mount (Meade's `A` is alt-az).
-                    out.send(b"P");
+                    self.session.sent(out.send(b"P"));
                     self.session.counters.acks = self.session.counters.acks.wrapping_add(1);
                 }
                 Some(Frame::Command(body)) => {
@@ -137,16 +140,22 @@ impl Interpreter {
     }
 
     /// Sends a guide frame's telemetry line, if this port's client asked.
-    pub fn send_telemetry(&self, frame: &TelemetryFrame, out: &mut impl ReplySink) {
+    pub fn send_telemetry(&mut self, frame: &TelemetryFrame, out: &mut impl ReplySink) {
         if self.session.telemetry {
             let mut line = Reply::new();
             telemetry::write(frame, &mut line);
-            out.send(line.as_bytes());
+            self.session.sent(out.send(line.as_bytes()));
         }
     }
 }
 
 impl Session {
+    /// Counts a reply the transport dropped.
+    fn sent(&mut self, taken: bool) {
+        if !taken {
+            self.counters.replies_dropped = self.counters.replies_dropped.wrapping_add(1);
+        }
+    }
     /// The port's counters, the framer's included.
     fn counters_now(&self, framer: FramerCounters) -> PortCounters {
         PortCounters {
@@ -186,7 +195,7 @@ impl Session {
             self.counters.replies_cut = self.counters.replies_cut.wrapping_add(1);
         }
         if !reply.is_empty() {
-            out.send(reply.as_bytes());
+            self.sent(out.send(reply.as_bytes()));
         }
     }
 

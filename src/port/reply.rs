@@ -13,10 +13,11 @@ pub const REPLY_CAPACITY: usize = 256;
 pub const LIST_END_ROOM: usize = 9;
 
 /// Where replies go: the transport (USB, UART) or a test's buffer. Each
-/// call is one whole reply; a transport that cannot take it all drops it and
-/// counts that itself.
+/// call is one whole reply; a transport that cannot take it all (its
+/// buffer full: a client that stopped reading) drops it whole and returns
+/// `false`, and the interpreter counts it (`replies_dropped`).
 pub trait ReplySink {
-    fn send(&mut self, reply: &[u8]);
+    fn send(&mut self, reply: &[u8]) -> bool;
 }
 
 /// A reply being formatted. Writes past the capacity are dropped and

@@ -6,6 +6,7 @@ use crate::port::framer::{COMMAND_CAPACITY, COMMAND_TIMEOUT_US};
 use crate::port::interpreter::Interpreter;
 use crate::port::mount_port::{Axis, GuidePulse, Line, ManualRate, PecState, Stage};
 use crate::port::telemetry::TelemetryFrame;
+use crate::port::ReplySink;
 use std::vec;
 
 #[test]
@@ -275,8 +276,38 @@ fn own_port_counters() {
     b.feed(b"xx:GR#:Zz#:Mgn99999#");
     assert_eq!(
         b.ask(":~Cp#"),
-        "commands=1 acks=0 garbage_bytes=2 overflows=0 timeouts=0 unknown=1 bad_values=1 replies_cut=0#"
+        "commands=1 acks=0 garbage_bytes=2 overflows=0 timeouts=0 unknown=1 bad_values=1 replies_cut=0 replies_dropped=0#"
     );
+}
+
+/// A transport with no room refuses replies and telemetry lines whole: the
+/// interpreter counts each, and goes on answering once there is room.
+#[test]
+fn replies_the_transport_drops_are_counted() {
+    struct Full(usize);
+    impl ReplySink for Full {
+        fn send(&mut self, _: &[u8]) -> bool {
+            self.0 += 1;
+            false
+        }
+    }
+    let mut b = Bench::new();
+    let mut full = Full(0);
+    b.port
+        .feed(b"\x06:GR#:GD#:~T1#", 0, &mut b.mount, &mut full);
+    let frame = TelemetryFrame {
+        time_ms: 0,
+        gear_time_ms: 0,
+        observation_mas: 0,
+        prediction_mas: 0,
+        feed_forward_mas_per_s: 0,
+        learned_permille: 0,
+        stages: &[],
+    };
+    b.port.send_telemetry(&frame, &mut full);
+    assert_eq!(full.0, 5);
+    assert_eq!(b.port.counters().replies_dropped, 5);
+    assert_eq!(b.ask(":GR#"), "06:30:45#");
 }
 
 #[test]

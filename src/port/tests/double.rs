@@ -136,8 +136,9 @@ impl MountPort for DoubleMount {
 pub struct Replies(pub Vec<Vec<u8>>);
 
 impl ReplySink for Replies {
-    fn send(&mut self, reply: &[u8]) {
+    fn send(&mut self, reply: &[u8]) -> bool {
         self.0.push(reply.to_vec());
+        true
     }
 }
 

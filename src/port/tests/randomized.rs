@@ -260,10 +260,11 @@ struct Sink {
 }
 
 impl ReplySink for Sink {
-    fn send(&mut self, reply: &[u8]) {
+    fn send(&mut self, reply: &[u8]) -> bool {
         assert!(!reply.is_empty() && reply.len() <= REPLY_CAPACITY);
         self.replies += 1;
         self.zeros += u64::from(reply == b"0");
+        true
     }
 }
 

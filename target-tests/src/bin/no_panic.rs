@@ -5,9 +5,11 @@
 //! nowhere. The linker drops unreferenced code, so the build links only if
 //! no panic call survives optimisation in anything this binary runs:
 //! `Guider<f32, 2>`'s `frame`, `dark_frame` and `dithered` (the PC-guider
-//! entry points), and the mount's `MountConfig::validate`, `Learner::new`
-//! and `Learner::learn` (which runs `Guider::observe`), on inputs the
-//! compiler cannot see through (`black_box`). A link error
+//! entry points), the mount's `MountConfig::validate`, `Learner::new`
+//! and `Learner::learn` (which runs `Guider::observe`), and the command
+//! port as the guiding task runs it (`Interpreter::feed` on a `PortMount`,
+//! `ControlLoop::wake`, a telemetry line), on inputs the compiler cannot
+//! see through (`black_box`): garbage on the port cannot panic. A link error
 //! naming `model_code_may_panic` means a panic path is back; the firmware's
 //! own count (`panic_sites` in test.sh) shows where.
 //!
@@ -25,10 +27,16 @@ mod support;
 use core::hint::black_box;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hio;
+use mkgp_mount::control_loop::port_mount::{LearnedFrame, PortMount, PortState};
+use mkgp_mount::control_loop::st4_feed::{EdgeQueue, EdgeSource, RawEdge};
+use mkgp_mount::control_loop::ControlLoop;
 use mkgp_mount::model::guider::{Guider, GuiderConfig};
-use mkgp_mount::mount::config::MountConfig;
-use mkgp_mount::mount::frame::{Frame, FrameKind};
+use mkgp_mount::mount::config::{Mount, MountConfig};
+use mkgp_mount::mount::frame::{FeedForward, Frame, FrameKind};
 use mkgp_mount::mount::learner::Learner;
+use mkgp_mount::port::mount_port::{Identity, StepCounts};
+use mkgp_mount::port::{Interpreter, ReplySink};
+use mkgp_mount::safety::reset_cause::ResetCause;
 use support::exit;
 
 extern "C" {
@@ -89,12 +97,109 @@ fn main() -> ! {
         sum += learner.learn(black_box(frame)).rate_arcsec_per_s;
     }
     black_box((applied, sum));
+    let replies = command_port(&mount, &learner);
     if let Ok(mut out) = hio::hstdout() {
         // Nothing to do if the host does not take it: the exit status says it.
-        let _ = out.write_all(b"no_panic: ran the guider's and the learner's entry points\n");
+        let _ = out.write_all(
+            b"no_panic: ran the guider's, the learner's, the loop's and the command port's entry points\n",
+        );
+    }
+    if replies == 0 {
+        exit(false)
     }
     exit(true)
 }
+
+/// Counts the replies, takes every one.
+struct Count(u32);
+
+impl ReplySink for Count {
+    fn send(&mut self, _: &[u8]) -> bool {
+        self.0 += 1;
+        true
+    }
+}
+
+/// No edges: the loop's wake-up with an empty ST4 queue.
+struct NoEdges;
+
+impl EdgeSource for NoEdges {
+    fn next_edge(&mut self) -> Option<RawEdge> {
+        None
+    }
+    fn queue(&self) -> EdgeQueue {
+        EdgeQueue {
+            dropped: black_box(0),
+            levels: black_box([false; 4]),
+        }
+    }
+}
+
+/// The firmware's command port on its loop, as the guiding task runs it:
+/// bytes the compiler cannot see (a command stream, then a byte stream of
+/// every value) through `Interpreter::feed` on a `PortMount`, each chunk
+/// followed by `ControlLoop::wake`, and a learned frame's telemetry.
+/// Returns the replies counted.
+fn command_port(mount: &Mount, learner: &Learner<2>) -> u32 {
+    const CONNECT: &[u8] = b"\x06:GR#:GD#:U#:Gc#:GM#:GT#:Gt#:Gg#:GG#:GL#:GC#:Sr06:00:00#:Sd+10*00:00#:CM#\
+        :RG#:Mw#:Qw#:Mgn1000#:RS#:Me#:Q#:Te#:Td#:GU#:GVP#:GVN#:GVD#:GVT#:~L#:~S0#:~Cs#:~Cg#:~Cl#:~Cf#:~Cp#\
+        :~F0#:~F1#:~T1#:~R#:~V#:Mgs99999#:Sr99:99:99#";
+    let (mut lp, _) = ControlLoop::start(mount, 0, 0);
+    let mut state = PortState::new(mount, IDENTITY, ResetCause::PowerOn);
+    let mut port = Interpreter::new();
+    let mut out = Count(0);
+    let mut now_us = 0u64;
+    let mut noise = black_box(0x2545_f491u32);
+    for round in 0..64u32 {
+        let mut chunk = [0u8; 48];
+        for (i, b) in chunk.iter_mut().enumerate() {
+            noise ^= noise << 13;
+            noise ^= noise >> 17;
+            noise ^= noise << 5;
+            *b = if round % 2 == 0 {
+                CONNECT[(round as usize * 48 + i) % CONNECT.len()]
+            } else {
+                noise as u8
+            };
+        }
+        now_us += black_box(20_000);
+        let steps = StepCounts {
+            ra: black_box(i64::from(round) * 1000),
+            dec: black_box(-i64::from(round)),
+        };
+        let mut pm = PortMount {
+            control: &mut lp,
+            state: &mut state,
+            now_us,
+            steps,
+        };
+        port.feed(black_box(&chunk), now_us, &mut pm, &mut out);
+        let _ = lp.wake(now_us, steps.ra, &mut NoEdges, None);
+    }
+    let learned = LearnedFrame::of(
+        learner,
+        &black_box(Frame {
+            gear_time_s: 2.0,
+            interval_s: 2.0,
+            kind: FrameKind::Measured,
+            gear_error_arcsec: 1.0,
+            applied_arcsec: 0.0,
+            pulse_arcsec: 0.0,
+            filled: false,
+        }),
+        black_box(FeedForward::NONE),
+    );
+    state.learner = learned.summary.clone();
+    port.send_telemetry(&learned.telemetry(now_us), &mut out);
+    black_box(out.0)
+}
+
+const IDENTITY: Identity = Identity {
+    product: "mkgp-mount",
+    version: "0",
+    date: "Jan 01 2026",
+    time: "00:00:00",
+};
 
 #[panic_handler]
 fn panic(_: &core::panic::PanicInfo) -> ! {
