@@ -122,6 +122,24 @@ mod chip {
     pub type AuxRx = peripherals::PC7;
 }
 
+/// Sets the NVIC priority of the transports' interrupts (embassy leaves
+/// them at the reset value, the highest, which is the step tick's).
+pub fn set_interrupt_priority(priority: embassy_stm32::interrupt::Priority) {
+    use embassy_stm32::interrupt::{self, InterruptExt};
+    #[cfg(feature = "stm32f411ce")]
+    for irq in [interrupt::OTG_FS, interrupt::USART1] {
+        irq.set_priority(priority);
+    }
+    #[cfg(feature = "stm32f407vg")]
+    for irq in [interrupt::OTG_FS, interrupt::USART2] {
+        irq.set_priority(priority);
+    }
+    #[cfg(feature = "stm32f446re")]
+    for irq in [interrupt::USART2, interrupt::USART6] {
+        irq.set_priority(priority);
+    }
+}
+
 /// Port 1's pins on this board.
 pub type AuxPins = UartPins<chip::AuxUart, chip::AuxTx, chip::AuxRx>;
 

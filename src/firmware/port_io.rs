@@ -150,12 +150,18 @@ async fn uart_port(uart: embassy_stm32::usart::BufferedUart<'static>, link: &'st
     relay(rx, tx, link).await
 }
 
+/// NVIC priority of the transports' interrupts: below the step tick, the
+/// ST4 edges and the guiding task, whose timing matters; the bytes wait.
+const TRANSPORT_PRIORITY: embassy_stm32::interrupt::Priority =
+    embassy_stm32::interrupt::Priority::P3;
+
 /// Starts the board's transports on `spawner` (thread mode). An error
 /// names the one that did not start; the others run.
 pub fn start(
     spawner: embassy_executor::Spawner,
     pins: hal::board::PortPins,
 ) -> Result<(), &'static str> {
+    hal::serial::set_interrupt_priority(TRANSPORT_PRIORITY);
     #[cfg(any(feature = "stm32f411ce", feature = "stm32f407vg"))]
     let port0 = {
         let (device, rx, tx) = hal::serial::start_usb(pins.usb).ok_or("USB")?;
