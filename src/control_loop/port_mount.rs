@@ -19,6 +19,7 @@
 use heapless::Vec;
 
 use crate::control_loop::ControlLoop;
+use crate::model::guider::Faults;
 use crate::model::numeric::clamp;
 use crate::mount::config::{Mount, SIDEREAL_ARCSEC_PER_S};
 use crate::mount::frame::{FeedForward, Frame};
@@ -44,6 +45,8 @@ pub struct LearnerSummary {
     /// The stages found so far, in order.
     pub stages: Vec<Stage, MAX_STAGES>,
     pub counters: LearnerCounters,
+    /// The model's own faults (bad input, failed factorisations, ...).
+    pub faults: Faults,
 }
 
 impl LearnerSummary {
@@ -72,6 +75,7 @@ impl LearnerSummary {
             learned_permille: libm::round(clamp(g.learning_progress(), 0.0, 1.0) * 1000.0) as u16,
             stages,
             counters: learner.counters(),
+            faults: g.faults(),
         }
     }
 }
@@ -260,6 +264,19 @@ fn learner_counter(c: &LearnerCounters, index: usize) -> Option<(&'static str, u
     })
 }
 
+/// The faults group: edges the ST4 queue lost, then the model's faults.
+fn fault_counter(lost_edges: u32, f: &Faults, index: usize) -> Option<(&'static str, u32)> {
+    Some(match index {
+        0 => ("lost_edges", lost_edges),
+        1 => ("model_bad_time", f.bad_time),
+        2 => ("model_bad_input", f.bad_input),
+        3 => ("model_inference_failures", f.inference_failures),
+        4 => ("model_grid_restarts", f.grid_restarts),
+        5 => ("model_bad_dithers", f.bad_dithers),
+        _ => return None,
+    })
+}
+
 /// Guiding's own counters, then the port motion's (ownership refusals).
 const GUIDING_COUNTERS: usize = 16;
 
@@ -337,10 +354,9 @@ impl MountPort for PortMount<'_> {
                 }
             }
             CounterGroup::Learner => learner_counter(&self.state.learner.counters, index)?,
-            CounterGroup::Faults => match index {
-                0 => ("lost_edges", self.control.lost_edges()),
-                _ => return None,
-            },
+            CounterGroup::Faults => {
+                fault_counter(self.control.lost_edges(), &self.state.learner.faults, index)?
+            }
         };
         Some(Counter { name, value })
     }

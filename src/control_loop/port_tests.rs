@@ -342,7 +342,12 @@ fn the_port_reads_the_loop_and_the_learner_summary() {
         r.ask(":~Cl#"),
         "frames=7 learned=0 not_learned=0 dithers=0#"
     );
-    assert_eq!(r.ask(":~Cf#"), "lost_edges=0#");
+    r.state.learner.faults.inference_failures = 2;
+    assert_eq!(
+        r.ask(":~Cf#"),
+        "lost_edges=0 model_bad_time=0 model_bad_input=0 model_inference_failures=2 \
+         model_grid_restarts=0 model_bad_dithers=0#"
+    );
     assert_eq!(r.ask(":~F0#:GU#"), "1Np/#");
     assert!(!r.lp.feed_forward_on());
     assert!(!r.state.take_reset_request());
