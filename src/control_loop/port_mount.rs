@@ -22,7 +22,7 @@ use crate::control_loop::ControlLoop;
 use crate::model::guider::Faults;
 use crate::model::numeric::clamp;
 use crate::mount::config::{Mount, SIDEREAL_ARCSEC_PER_S};
-use crate::mount::frame::{FeedForward, Frame};
+use crate::mount::frame::{FeedForward, Frame, FrameKind};
 use crate::mount::guiding::GuidingCounters;
 use crate::mount::learner::{Learner, LearnerCounters};
 use crate::mount::st4::St4Counters;
@@ -94,8 +94,15 @@ pub struct LearnedFrame {
     /// The feed-forward the learner returned for the frame.
     pub feed_forward: FeedForward,
     pub gear_time_s: f64,
+    /// The frame as the guiding task made it.
+    pub kind: FrameKind,
+    pub filled: bool,
     /// The frame's observed gear error, arcsec.
     pub observation_arcsec: f32,
+    /// The correction the guider's pulse asked for, arcsec.
+    pub pulse_arcsec: f32,
+    /// The mean correction applied over the frame, arcsec.
+    pub applied_arcsec: f32,
     /// The model's predicted change of the gear error over the next
     /// frame, arcsec.
     pub prediction_arcsec: f32,
@@ -113,7 +120,11 @@ impl LearnedFrame {
             summary: LearnerSummary::of(learner),
             feed_forward,
             gear_time_s: frame.gear_time_s,
+            kind: frame.kind,
+            filled: frame.filled,
             observation_arcsec: frame.gear_error_arcsec,
+            pulse_arcsec: frame.pulse_arcsec,
+            applied_arcsec: frame.applied_arcsec,
             prediction_arcsec: learner.guider().prediction(),
         }
     }
@@ -124,7 +135,15 @@ impl LearnedFrame {
             time_ms: time_us / 1000,
             // Saturating, NaN to 0: gear time is never negative.
             gear_time_ms: libm::round(self.gear_time_s * 1000.0) as u64,
+            kind: match self.kind {
+                FrameKind::Measured if self.filled => b'f',
+                FrameKind::Measured => b'm',
+                FrameKind::Unmeasured => b'u',
+                FrameKind::Dither { .. } => b'd',
+            },
             observation_mas: mas(self.observation_arcsec.into()),
+            pulse_mas: mas(self.pulse_arcsec.into()),
+            applied_mas: mas(self.applied_arcsec.into()),
             prediction_mas: mas(self.prediction_arcsec.into()),
             feed_forward_mas_per_s: mas(self.feed_forward.rate_arcsec_per_s.into()),
             learned_permille: self.summary.learned_permille,

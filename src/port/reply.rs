@@ -4,10 +4,10 @@
 use heapless::Vec;
 
 /// The longest reply. LX200 replies are under 60 bytes; a telemetry line
-/// with two stages takes up to 233; our counter lists are cut to fit (with
+/// with two stages takes up to 280; our counter lists are cut to fit (with
 /// `more=`, docs/port.md). RAM: this many bytes on the stack while a
 /// command is answered, none kept.
-pub const REPLY_CAPACITY: usize = 256;
+pub const REPLY_CAPACITY: usize = 320;
 
 /// Room [`Reply::key_value`] leaves for the end of a list: ` more=99#`.
 pub const LIST_END_ROOM: usize = 9;

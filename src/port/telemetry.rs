@@ -12,8 +12,17 @@ pub struct TelemetryFrame<'a> {
     pub time_ms: u64,
     /// Gear time (RA steps over the sidereal step rate), milliseconds.
     pub gear_time_ms: u64,
-    /// The frame's observed gear error, milliarcseconds.
+    /// What made the frame: `m` a measured pulse, `f` filled by the
+    /// cadence, `u` unmeasured, `d` a dither.
+    pub kind: u8,
+    /// The frame's observed gear error, milliarcseconds: where the mount
+    /// would have pointed with no correction at all.
     pub observation_mas: i32,
+    /// The correction the guider's pulse asked for, milliarcseconds.
+    pub pulse_mas: i32,
+    /// The mean correction the mount applied over the frame (tracking
+    /// corrections: pulses and feed-forward), milliarcseconds.
+    pub applied_mas: i32,
     /// The model's prediction for the frame, milliarcseconds.
     pub prediction_mas: i32,
     pub feed_forward_mas_per_s: i32,
@@ -25,13 +34,17 @@ pub struct TelemetryFrame<'a> {
 /// commas.
 const STAGE_FIELD_MAX: usize = 7 + 3 * 10 + 2;
 
-/// `~T t_ms=.. gear_ms=.. obs_mas=.. pred_mas=.. ff_mas_s=.. learn_pm=..
-/// stage=PERIOD_MS,AMP_MAS,GATE_PM ...#`, one `stage=` per stage that fits
-/// the reply: two always do, with every number at its widest.
+/// `~T t_ms=.. gear_ms=.. kind=.. obs_mas=.. pulse_mas=.. applied_mas=..
+/// pred_mas=.. ff_mas_s=.. learn_pm=.. stage=PERIOD_MS,AMP_MAS,GATE_PM
+/// ...#`, one `stage=` per stage that fits the reply: two always do, with
+/// every number at its widest.
 pub fn write(frame: &TelemetryFrame, out: &mut Reply) {
     out.text(b"~T t_ms=").uint(frame.time_ms);
     out.text(b" gear_ms=").uint(frame.gear_time_ms);
+    out.text(b" kind=").byte(frame.kind);
     out.text(b" obs_mas=").int(frame.observation_mas.into());
+    out.text(b" pulse_mas=").int(frame.pulse_mas.into());
+    out.text(b" applied_mas=").int(frame.applied_mas.into());
     out.text(b" pred_mas=").int(frame.prediction_mas.into());
     out.text(b" ff_mas_s=")
         .int(frame.feed_forward_mas_per_s.into());

@@ -298,7 +298,10 @@ fn replies_the_transport_drops_are_counted() {
     let frame = TelemetryFrame {
         time_ms: 0,
         gear_time_ms: 0,
+        kind: b'm',
         observation_mas: 0,
+        pulse_mas: 0,
+        applied_mas: 0,
         prediction_mas: 0,
         feed_forward_mas_per_s: 0,
         learned_permille: 0,
@@ -316,7 +319,10 @@ fn telemetry_only_when_asked() {
     let frame = TelemetryFrame {
         time_ms: 1_234_567,
         gear_time_ms: 1_200_000,
+        kind: b'm',
         observation_mas: -1_500,
+        pulse_mas: -700,
+        applied_mas: -480,
         prediction_mas: -1_420,
         feed_forward_mas_per_s: 35,
         learned_permille: 423,
@@ -330,7 +336,8 @@ fn telemetry_only_when_asked() {
     b.port.send_telemetry(&frame, &mut sink);
     assert_eq!(
         sink.0.concat(),
-        b"~T t_ms=1234567 gear_ms=1200000 obs_mas=-1500 pred_mas=-1420 ff_mas_s=35 learn_pm=423 \
+        b"~T t_ms=1234567 gear_ms=1200000 kind=m obs_mas=-1500 pulse_mas=-700 applied_mas=-480 \
+          pred_mas=-1420 ff_mas_s=35 learn_pm=423 \
           stage=600000,4250,1000 stage=86400,730,412#"
     );
     // Every number at its widest: two stages still fit.
@@ -342,7 +349,10 @@ fn telemetry_only_when_asked() {
     let frame = TelemetryFrame {
         time_ms: u64::MAX,
         gear_time_ms: u64::MAX,
+        kind: b'd',
         observation_mas: i32::MIN,
+        pulse_mas: i32::MIN,
+        applied_mas: i32::MIN,
         prediction_mas: i32::MIN,
         feed_forward_mas_per_s: i32::MIN,
         learned_permille: u16::MAX,
