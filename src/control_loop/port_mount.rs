@@ -21,7 +21,7 @@ use heapless::Vec;
 use crate::control_loop::ControlLoop;
 use crate::model::guider::Faults;
 use crate::model::numeric::clamp;
-use crate::mount::config::{Mount, SIDEREAL_ARCSEC_PER_S};
+use crate::mount::config::{Mount, MountConfig, SIDEREAL_ARCSEC_PER_S};
 use crate::mount::frame::{FeedForward, Frame, FrameKind};
 use crate::mount::guiding::GuidingCounters;
 use crate::mount::learner::{Learner, LearnerCounters};
@@ -173,6 +173,12 @@ pub struct PortState {
     pub identity: Identity,
     pub reset_cause: ResetCause,
     reset_requested: bool,
+    /// The configuration a save stores and the next start uses.
+    pending: MountConfig,
+    save_requested: bool,
+    /// The caller has a store that takes [`PortState::take_save_request`]'s
+    /// configuration; without one `:~KW#` is refused.
+    pub store: bool,
 }
 
 impl PortState {
@@ -187,7 +193,16 @@ impl PortState {
             identity,
             reset_cause,
             reset_requested: false,
+            pending: *mount.config(),
+            save_requested: false,
+            store: false,
         }
+    }
+
+    /// The pending configuration, if a save was asked since the last call
+    /// (`:~KW#`).
+    pub fn take_save_request(&mut self) -> Option<MountConfig> {
+        core::mem::take(&mut self.save_requested).then_some(self.pending)
     }
 
     /// Whether a model reset was asked since the last call (`:~R#`).
@@ -394,5 +409,17 @@ impl MountPort for PortMount<'_> {
 
     fn reset_cause(&mut self) -> ResetCause {
         self.state.reset_cause
+    }
+
+    fn pending_config(&mut self) -> MountConfig {
+        self.state.pending
+    }
+
+    fn set_pending_config(&mut self, config: MountConfig) {
+        self.state.pending = config;
+    }
+
+    fn save_config(&mut self) -> bool {
+        self.state.store && !core::mem::replace(&mut self.state.save_requested, true)
     }
 }

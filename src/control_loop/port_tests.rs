@@ -355,6 +355,22 @@ fn the_port_reads_the_loop_and_the_learner_summary() {
     assert!(r.state.take_reset_request());
     assert!(!r.state.take_reset_request());
     assert_eq!(r.ask(":~V#"), "version=0.1.0 reset=reset_pin#");
+    // The pending configuration starts as the running one; a save is
+    // refused without a store, and taken once with one.
+    assert_eq!(
+        r.ask(":~Kguider_aggressiveness#"),
+        "guider_aggressiveness=0.7#"
+    );
+    assert_eq!(r.ask(":~Kguider_aggressiveness=0.5#"), "1");
+    assert_eq!(r.ask(":~KW#"), "0");
+    assert_eq!(r.state.take_save_request(), None);
+    r.state.store = true;
+    assert_eq!(r.ask(":~KW#:~KW#"), "10");
+    let saved = r.state.take_save_request().unwrap();
+    assert_eq!(saved.guider_aggressiveness, 0.5);
+    assert_eq!(r.state.take_save_request(), None);
+    // The loop runs on with what it started with.
+    assert_eq!(r.mount.config().guider_aggressiveness, 0.7);
 }
 
 /// Random command streams (guides, moves, stops, rates, tracking, syncs,

@@ -151,6 +151,11 @@ impl Field {
             Field::SilenceFrames => "silence_frames",
         }
     }
+
+    /// The field called `name` (its name in [`MountConfig`], as bytes).
+    pub fn from_name(name: &[u8]) -> Option<Field> {
+        Field::ALL.into_iter().find(|f| f.name().as_bytes() == name)
+    }
 }
 
 /// A field's value: a count or a real number.
@@ -259,6 +264,29 @@ impl MountConfig {
             Field::DitherThresholdUs => Value::Count(c.dither_threshold_us),
             Field::SilenceFrames => Value::Count(c.silence_frames),
         }
+    }
+
+    /// Sets `field` to `value` (not validated: [`MountConfig::validate`]
+    /// the result). `Err` if the value is of the other kind than the
+    /// field's (a real number for a count).
+    pub fn set(&mut self, field: Field, value: Value) -> Result<(), Value> {
+        let c = self;
+        match (field, value) {
+            (Field::RaStepsPerWormTurn, Value::Count(v)) => c.ra_steps_per_worm_turn = v,
+            (Field::WormPeriodS, Value::Real(v)) => c.worm_period_s = v,
+            (Field::DecStepsPerDegree, Value::Real(v)) => c.dec_steps_per_degree = v,
+            (Field::GuideRateSidereal, Value::Real(v)) => c.guide_rate_sidereal = v,
+            (Field::MaxRateSidereal, Value::Real(v)) => c.max_rate_sidereal = v,
+            (Field::StepTickHz, Value::Count(v)) => c.step_tick_hz = v,
+            (Field::GlitchUs, Value::Count(v)) => c.glitch_us = v,
+            (Field::PulseCapUs, Value::Count(v)) => c.pulse_cap_us = v,
+            (Field::GuideCadenceS, Value::Real(v)) => c.guide_cadence_s = v,
+            (Field::GuiderAggressiveness, Value::Real(v)) => c.guider_aggressiveness = v,
+            (Field::DitherThresholdUs, Value::Count(v)) => c.dither_threshold_us = v,
+            (Field::SilenceFrames, Value::Count(v)) => c.silence_frames = v,
+            (_, other) => return Err(other),
+        }
+        Ok(())
     }
 
     /// `Ok` if `ok`, else the error for `field` breaking `rule`.
@@ -759,6 +787,31 @@ mod tests {
         // Both outcomes, and every field's refusal, were exercised.
         assert!(ok > 1_000, "{ok} accepted");
         assert!(refused_by.iter().all(|&n| n > 0), "{refused_by:?}");
+    }
+
+    /// Every field by its name, and `set` then `get` round-trips; a value
+    /// of the other kind is refused and changes nothing.
+    #[test]
+    fn fields_by_name_set_and_get() {
+        let mut c = MountConfig::default();
+        for field in Field::ALL {
+            assert_eq!(Field::from_name(field.name().as_bytes()), Some(field));
+            let value = match c.get(field) {
+                Value::Count(v) => Value::Count(v + 1),
+                Value::Real(v) => Value::Real(v * 1.5),
+            };
+            c.set(field, value).unwrap();
+            assert_eq!(c.get(field), value);
+            let other = match value {
+                Value::Count(_) => Value::Real(1.0),
+                Value::Real(_) => Value::Count(1),
+            };
+            let before = c;
+            assert_eq!(c.set(field, other), Err(other));
+            assert_eq!(c, before);
+        }
+        assert_eq!(Field::from_name(b"worm_period"), None);
+        assert_eq!(Field::from_name(b""), None);
     }
 
     #[test]

@@ -2,9 +2,11 @@
 //! meaning, every number range-checked here, so the interpreter only ever
 //! holds values it may act on.
 
+use super::config_value;
 use super::coords::{Dec, Ra};
 use super::mount_port::{Axis, CounterGroup, GuidePulse, Line, ManualRate};
 use super::site::{Date, Latitude, Longitude, TimeOfDay, UtcOffset};
+use crate::mount::config::{Field, MountConfig, Value};
 
 /// The rate `:Mn#` and its siblings move at, chosen by `:RG# :RC# :RM#
 /// :RS#`. At the guide rate a move is a guide pulse (INDI guides this way by
@@ -70,7 +72,7 @@ pub enum Setting {
 }
 
 /// Our own commands, `:~...#` (docs/port.md).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Own {
     /// `:~L#` learning and feed-forward.
     Learning,
@@ -88,6 +90,17 @@ pub enum Own {
     Firmware,
     /// `:~T1#` / `:~T0#` a telemetry line per guide frame on this port.
     Telemetry(bool),
+    /// `:~K#` / `:~K<k>#` the pending configuration, from field `k`.
+    ConfigList(usize),
+    /// `:~K<name>#` one field of it; `None`: no field has that name.
+    ConfigGet(Option<Field>),
+    /// `:~K<name>=<value>#`; `None`: the text is no value of the field's
+    /// kind.
+    ConfigSet { field: Field, value: Option<Value> },
+    /// `:~KD#` the pending configuration back to the defaults.
+    ConfigDefaults,
+    /// `:~KW#` save the pending configuration for the next start.
+    ConfigSave,
 }
 
 /// Whose counters `:~C...#` reads.
@@ -99,7 +112,7 @@ pub enum Counters {
 }
 
 /// What a command means.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Command {
     Get(Query),
     Set(Setting),
@@ -251,6 +264,32 @@ fn own(rest: &[u8]) -> Result<Own, Refusal> {
             };
             Own::Counters { group, start }
         }
+        [b'K', rest @ ..] => config(rest)?,
         _ => return Err(Refusal::Unknown),
+    })
+}
+
+/// `:~K...#`: field names are lower case, so `D` and `W` cannot be one.
+fn config(rest: &[u8]) -> Result<Own, Refusal> {
+    Ok(match rest {
+        b"D" => Own::ConfigDefaults,
+        b"W" => Own::ConfigSave,
+        [] => Own::ConfigList(0),
+        [d @ b'0'..=b'9'] => Own::ConfigList(usize::from(d - b'0')),
+        [d1 @ b'0'..=b'9', d2 @ b'0'..=b'9'] => {
+            Own::ConfigList(usize::from(d1 - b'0') * 10 + usize::from(d2 - b'0'))
+        }
+        _ => match rest.iter().position(|&b| b == b'=') {
+            None => Own::ConfigGet(Field::from_name(rest)),
+            Some(eq) => {
+                let name = rest.get(..eq).unwrap_or(&[]);
+                let text = rest.get(eq + 1..).unwrap_or(&[]);
+                let field = Field::from_name(name).ok_or(Refusal::BadSetting)?;
+                // The kind of value the field takes, from any configuration.
+                let like = MountConfig::default().get(field);
+                let value = config_value::parse(text, like);
+                Own::ConfigSet { field, value }
+            }
+        },
     })
 }

@@ -19,13 +19,14 @@
 use heapless::Vec;
 
 /// The longest command body (between `:` and `#`) kept. The longest the
-/// clients send is `Sd sDD*MM:SS` (12 bytes) or `SC MM/DD/YY` (11); twice
-/// that leaves room for spaces and degree signs of two bytes. RAM: this many
-/// bytes plus the framer's state, about 48 bytes per port.
-pub const COMMAND_CAPACITY: usize = 32;
+/// LX200 clients send is `Sd sDD*MM:SS` (12 bytes) or `SC MM/DD/YY` (11);
+/// ours is a configuration field set, `~Kra_steps_per_worm_turn=` and ten
+/// digits (35), or a real with twelve digits, a sign and a point. RAM:
+/// this many bytes plus the framer's state, about 64 bytes per port.
+pub const COMMAND_CAPACITY: usize = 48;
 
 /// How long a command may take from its `:` to its `#`. A client writes a
-/// command at once (32 bytes take 33 ms at 9600 baud); a second covers a
+/// command at once (48 bytes take 50 ms at 9600 baud); a second covers a
 /// serial bridge that delivers it in pieces.
 pub const COMMAND_TIMEOUT_US: u64 = 1_000_000;
 

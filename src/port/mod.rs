@@ -10,7 +10,8 @@
 //! - [`mount_port`]: the [`MountPort`] trait the firmware and the simulator
 //!   implement, and the bounded values that cross it.
 //! - [`interpreter`]: [`Interpreter::feed`], the entry point of a transport.
-//! - [`own`]: our own commands; [`telemetry`]: the per-frame line.
+//! - [`own`]: our own commands; [`telemetry`]: the per-frame line;
+//!   [`config_value`]: configuration values as text.
 //! - [`reply`]: the bounded reply buffer and the [`ReplySink`] trait.
 //!
 //! RAM: an [`Interpreter`] per port (its framer's
@@ -19,6 +20,7 @@
 //! answered.
 
 pub mod command;
+pub mod config_value;
 pub mod coords;
 pub mod framer;
 pub mod interpreter;

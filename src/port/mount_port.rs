@@ -5,6 +5,7 @@
 //! three.
 
 use super::coords::Equatorial;
+use crate::mount::config::MountConfig;
 pub use crate::mount::st4::{Axis, Line};
 use crate::safety::reset_cause::ResetCause;
 
@@ -165,4 +166,12 @@ pub trait MountPort {
     /// Forgets everything the model learned.
     fn reset_model(&mut self);
     fn reset_cause(&mut self) -> ResetCause;
+    /// The configuration a save stores and the next start uses (at start,
+    /// the one running).
+    fn pending_config(&mut self) -> MountConfig;
+    /// Replaces it (the port has validated it).
+    fn set_pending_config(&mut self, config: MountConfig);
+    /// Asks for the pending configuration to be saved; `false` if no save
+    /// can be asked now (no store, or one under way).
+    fn save_config(&mut self) -> bool;
 }

@@ -3,9 +3,11 @@
 //! switches answer `1`.
 
 use super::command::{Counters, Own};
+use super::config_value;
 use super::interpreter::PortCounters;
 use super::mount_port::{Counter, MountPort};
-use super::reply::Reply;
+use super::reply::{Reply, LIST_END_ROOM};
+use crate::mount::config::{ConfigError, Field, MountConfig};
 
 /// The most stages `:~L#` counts (`:~S<n>#` takes one digit).
 const MAX_STAGES: usize = 10;
@@ -80,8 +82,84 @@ pub fn carry_out(
             reply.byte(b'1');
             return Some(on);
         }
+        Own::ConfigList(start) => config_list(&mount.pending_config(), start, reply),
+        Own::ConfigGet(field) => {
+            match field {
+                Some(field) => {
+                    reply.text(field.name().as_bytes()).byte(b'=');
+                    config_value::write(mount.pending_config().get(field), reply);
+                }
+                None => {
+                    reply.text(b"none");
+                }
+            }
+            reply.byte(b'#');
+        }
+        Own::ConfigSet { field, value } => {
+            let mut config = mount.pending_config();
+            let checked = match value {
+                Some(value) => config
+                    .set(field, value)
+                    .ok()
+                    .map(|()| config.validate().map(|_| ())),
+                None => None,
+            };
+            match checked {
+                Some(Ok(())) => {
+                    mount.set_pending_config(config);
+                    reply.byte(b'1');
+                }
+                Some(Err(e)) => refused(&e, reply),
+                None => {
+                    reply.text(b"0 field=").text(field.name().as_bytes());
+                    reply.text(b" rule=not_a_value_of_its_kind#");
+                }
+            }
+        }
+        Own::ConfigDefaults => {
+            mount.set_pending_config(MountConfig::default());
+            reply.byte(b'1');
+        }
+        Own::ConfigSave => {
+            reply.byte(if mount.save_config() { b'1' } else { b'0' });
+        }
     }
     None
+}
+
+/// A refused configuration: `0 field=NAME rule=WHAT_IT_MUST_BE#`, the rule's
+/// spaces as `_` (a space would end the value).
+fn refused(e: &ConfigError, reply: &mut Reply) {
+    reply.text(b"0 field=").text(e.field.name().as_bytes());
+    reply.text(b" rule=");
+    for b in e.rule.bytes() {
+        reply.byte(if b == b' ' { b'_' } else { b });
+    }
+    reply.byte(b'#');
+}
+
+/// `name=value ...#` of `config` from field `start` on, ended ` more=K#`
+/// where the rest does not fit.
+fn config_list(config: &MountConfig, start: usize, reply: &mut Reply) {
+    for (i, field) in Field::ALL.iter().enumerate().skip(start) {
+        let mut value = Reply::new();
+        config_value::write(config.get(*field), &mut value);
+        let name = field.name().as_bytes();
+        let space = usize::from(!reply.is_empty());
+        if space + name.len() + 1 + value.as_bytes().len() + LIST_END_ROOM > reply.room() {
+            if space == 1 {
+                reply.byte(b' ');
+            }
+            // Fewer than a hundred fields: the cast is exact.
+            reply.text(b"more=").uint(i as u64);
+            break;
+        }
+        if space == 1 {
+            reply.byte(b' ');
+        }
+        reply.text(name).byte(b'=').text(value.as_bytes());
+    }
+    reply.byte(b'#');
 }
 
 /// `name=value ...#` from counter `start` on; if they do not all fit,

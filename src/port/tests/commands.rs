@@ -1,6 +1,7 @@
 //! One test per command (or family), with the exact bytes of each reply.
 
 use super::double::{Bench, Call};
+use crate::mount::config::{Field, MountConfig};
 use crate::port::coords::{Dec, Equatorial, Ra};
 use crate::port::framer::{COMMAND_CAPACITY, COMMAND_TIMEOUT_US};
 use crate::port::interpreter::Interpreter;
@@ -270,6 +271,50 @@ fn own_counters_and_their_continuation() {
     assert_eq!(b.port.counters().bad_values, 1);
 }
 
+/// The pending configuration by name: read, set with the library's own
+/// validation (an error names the field and the rule), listed in pieces,
+/// back to the defaults, saved on request.
+#[test]
+fn own_configuration() {
+    let mut b = Bench::new();
+    assert_eq!(b.ask(":~Kworm_period_s#"), "worm_period_s=478.6894#");
+    assert_eq!(b.ask(":~Kno_such_field#"), "none#");
+    assert_eq!(b.ask(":~Kworm_period_s=598.36#"), "1");
+    assert_eq!(b.mount.config.worm_period_s, 598.36);
+    // The longest command: a count field at its widest (refused: too many
+    // steps for the step tick).
+    let refused = b.ask(":~Kra_steps_per_worm_turn=4294967295#");
+    assert!(
+        refused.starts_with("0 field=ra_steps_per_worm_turn rule=too_many"),
+        "{refused}"
+    );
+    assert_eq!(b.ask(":~Kra_steps_per_worm_turn=1000000#"), "1");
+    assert_eq!(
+        b.ask(":~Kguide_rate_sidereal=0#"),
+        "0 field=guide_rate_sidereal rule=must_be_0.1_to_1_(x_sidereal)#"
+    );
+    assert_eq!(b.mount.config.guide_rate_sidereal, 0.5);
+    assert_eq!(
+        b.ask(":~Kstep_tick_hz=5.5#"),
+        "0 field=step_tick_hz rule=not_a_value_of_its_kind#"
+    );
+    assert_eq!(b.ask(":~Kno_such_field=1#"), "0");
+    // Every field in one or more replies.
+    let first = b.ask(":~K#");
+    let mut listed = first.matches('=').count();
+    let mut reply = first;
+    while let Some((_, more)) = reply.trim_end_matches('#').rsplit_once(" more=") {
+        listed -= 1;
+        reply = b.ask(&std::format!(":~K{more}#"));
+        listed += reply.matches('=').count();
+    }
+    assert_eq!(listed, Field::ALL.len());
+    assert_eq!(b.ask(":~KD#"), "1");
+    assert_eq!(b.mount.config, MountConfig::default());
+    assert_eq!(b.ask(":~KW#"), "1");
+    assert_eq!(b.mount.calls.last(), Some(&Call::SaveConfig));
+}
+
 #[test]
 fn own_port_counters() {
     let mut b = Bench::new();
@@ -441,7 +486,7 @@ fn unknown_commands_are_silent_and_counted() {
 fn size() {
     // The framer's buffer and the session: a port costs this much RAM.
     let size = core::mem::size_of::<Interpreter>();
-    assert!(size <= 160, "{size}");
+    assert!(size <= 176, "{size}");
     // And the reply on the stack while a command is answered.
     let reply = core::mem::size_of::<crate::port::reply::Reply>();
     assert!(reply <= crate::port::reply::REPLY_CAPACITY + 16, "{reply}");

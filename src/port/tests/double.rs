@@ -1,6 +1,7 @@
 //! A mount that records what the port asked of it and answers with fixed
 //! values, and a sink that keeps the replies.
 
+use crate::mount::config::MountConfig;
 use crate::port::coords::{Dec, Equatorial, Ra};
 use crate::port::interpreter::Interpreter;
 use crate::port::mount_port::{
@@ -21,12 +22,14 @@ pub enum Call {
     Tracking(bool),
     FeedForward(bool),
     ResetModel,
+    SaveConfig,
 }
 
 pub struct DoubleMount {
     pub position: Equatorial,
     pub status: Status,
     pub calls: Vec<Call>,
+    pub config: MountConfig,
 }
 
 pub const STAGES: [Stage; 2] = [
@@ -55,6 +58,7 @@ impl DoubleMount {
                 pec: PecState::Playing,
             },
             calls: Vec::new(),
+            config: MountConfig::default(),
         }
     }
 }
@@ -128,6 +132,16 @@ impl MountPort for DoubleMount {
     }
     fn reset_cause(&mut self) -> ResetCause {
         ResetCause::Pin
+    }
+    fn pending_config(&mut self) -> MountConfig {
+        self.config
+    }
+    fn set_pending_config(&mut self, config: MountConfig) {
+        self.config = config;
+    }
+    fn save_config(&mut self) -> bool {
+        self.calls.push(Call::SaveConfig);
+        true
     }
 }
 

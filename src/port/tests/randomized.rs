@@ -31,11 +31,65 @@ fn scale() -> u64 {
 
 /// Commands without arguments, as clients send them.
 const FIXED: &[&[u8]] = &[
-    b"GR", b"GD", b"U", b"Gc", b"GM", b"GT", b"Gt", b"Gg", b"GG", b"GL", b"GC", b"GU", b"GVP",
-    b"GVN", b"GVD", b"GVT", b"CM", b"MS", b"D", b"RG", b"RC", b"RM", b"RS", b"Mn", b"Ms", b"Me",
-    b"Mw", b"Qn", b"Qs", b"Qe", b"Qw", b"Q", b"Te", b"Td", b"~L", b"~S0", b"~S1", b"~S7", b"~P",
-    b"~F0", b"~F1", b"~R", b"~V", b"~T0", b"~T1", b"~Cp", b"~Cs", b"~Cg", b"~Cl", b"~Cf", b"~Cf7",
+    b"GR",
+    b"GD",
+    b"U",
+    b"Gc",
+    b"GM",
+    b"GT",
+    b"Gt",
+    b"Gg",
+    b"GG",
+    b"GL",
+    b"GC",
+    b"GU",
+    b"GVP",
+    b"GVN",
+    b"GVD",
+    b"GVT",
+    b"CM",
+    b"MS",
+    b"D",
+    b"RG",
+    b"RC",
+    b"RM",
+    b"RS",
+    b"Mn",
+    b"Ms",
+    b"Me",
+    b"Mw",
+    b"Qn",
+    b"Qs",
+    b"Qe",
+    b"Qw",
+    b"Q",
+    b"Te",
+    b"Td",
+    b"~L",
+    b"~S0",
+    b"~S1",
+    b"~S7",
+    b"~P",
+    b"~F0",
+    b"~F1",
+    b"~R",
+    b"~V",
+    b"~T0",
+    b"~T1",
+    b"~Cp",
+    b"~Cs",
+    b"~Cg",
+    b"~Cl",
+    b"~Cf",
+    b"~Cf7",
     b"~Cs99",
+    b"~K",
+    b"~K5",
+    b"~K11",
+    b"~KD",
+    b"~KW",
+    b"~Kworm_period_s",
+    b"~Kglitch_us",
 ];
 
 fn pick<'a>(rng: &mut SplitMix64, from: &[&'a [u8]]) -> &'a [u8] {
@@ -90,6 +144,22 @@ fn command(rng: &mut SplitMix64, out: &mut Vec<u8>) {
             if rng.below(2) == 0 {
                 out.push(b':');
                 number(rng, 2, out);
+            }
+        }
+        8 if rng.below(2) == 0 => {
+            // A configuration field set, often out of range.
+            let field = crate::mount::config::Field::ALL
+                [rng.below(crate::mount::config::Field::ALL.len() as u64) as usize];
+            out.extend_from_slice(b"~K");
+            out.extend_from_slice(field.name().as_bytes());
+            out.push(b'=');
+            out.extend_from_slice(pick(rng, &[b"", b"-", b"+"]));
+            let digits = 1 + rng.below(6) as usize;
+            number(rng, digits, out);
+            if rng.below(2) == 0 {
+                out.push(b'.');
+                let digits = 1 + rng.below(4) as usize;
+                number(rng, digits, out);
             }
         }
         8 => {

@@ -143,7 +143,8 @@ impl EdgeSource for NoEdges {
 fn command_port(mount: &Mount, learner: &Learner<2>) -> u32 {
     const CONNECT: &[u8] = b"\x06:GR#:GD#:U#:Gc#:GM#:GT#:Gt#:Gg#:GG#:GL#:GC#:Sr06:00:00#:Sd+10*00:00#:CM#\
         :RG#:Mw#:Qw#:Mgn1000#:RS#:Me#:Q#:Te#:Td#:GU#:GVP#:GVN#:GVD#:GVT#:~L#:~S0#:~Cs#:~Cg#:~Cl#:~Cf#:~Cp#\
-        :~F0#:~F1#:~T1#:~R#:~V#:Mgs99999#:Sr99:99:99#";
+        :~F0#:~F1#:~T1#:~R#:~V#:Mgs99999#:Sr99:99:99#\
+        :~K#:~K7#:~Kworm_period_s=598.36#:~Kworm_period_s#:~Kglitch_us=x#:~KD#:~KW#";
     let (mut lp, _) = ControlLoop::start(mount, 0, 0);
     let mut state = PortState::new(mount, IDENTITY, ResetCause::PowerOn);
     let mut port = Interpreter::new();
