@@ -75,6 +75,38 @@ pub const PULSE_GAP_US: u64 = 5_000;
 /// The seeds of the noisy runs.
 pub const SEEDS: [u64; 3] = [1, 2, 3];
 
+/// The guider in front of the firmware, as its user set it up (PHD2's
+/// hysteresis algorithm; its hysteresis stays 0.1). The default is the
+/// guider the firmware's configuration assumes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GuiderSettings {
+    pub aggressiveness: f64,
+    /// Exposure and guide cycle, s (back to back).
+    pub exposure_s: f64,
+    /// Smallest correction the guider sends, arcsec (1 px = 1 arcsec).
+    pub min_move: f64,
+    /// The guide rate the guider's calibration measured over the true one:
+    /// its pulses are `correction / (calibration x guide rate)` long.
+    pub calibration: f64,
+}
+
+impl Default for GuiderSettings {
+    fn default() -> Self {
+        GuiderSettings {
+            aggressiveness: 0.7,
+            exposure_s: EXPOSURE_S,
+            min_move: 0.2,
+            calibration: 1.0,
+        }
+    }
+}
+
+impl GuiderSettings {
+    fn exposure_us(&self) -> u64 {
+        (self.exposure_s * 1e6) as u64
+    }
+}
+
 /// What runs in the firmware.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Firmware {
@@ -232,7 +264,9 @@ pub struct Rig {
     /// Raw edges still to come, sorted by time.
     edges: VecDeque<(u64, Line, bool)>,
     levels: [bool; 4],
-    /// The guider: its hysteresis, noise, whether it answers at all.
+    /// The guider: its settings, its hysteresis, noise, whether it answers
+    /// at all.
+    guider: GuiderSettings,
     hysteresis: Hysteresis,
     noise: Option<(f64, Gaussian)>,
     pub guider_on: bool,
@@ -296,6 +330,7 @@ impl Rig {
             rates: Rates::default(),
             edges: VecDeque::new(),
             levels: [false; 4],
+            guider: GuiderSettings::default(),
             hysteresis: Hysteresis::phd2_baseline(),
             noise: (noise_px > 0.0).then(|| (noise_px, Gaussian::new(seed))),
             guider_on: true,
@@ -303,7 +338,7 @@ impl Rig {
             dither_next: None,
             exposure_sum: 0.0,
             exposure_n: 0,
-            next_exposure_end_us: (EXPOSURE_S * 1e6) as u64,
+            next_exposure_end_us: GuiderSettings::default().exposure_us(),
             last_pulse_end_us: 0,
             score_sq: 0.0,
             score_n: 0,
@@ -318,6 +353,13 @@ impl Rig {
         };
         rig.note_rates(rates);
         rig
+    }
+
+    /// Sets up the guider; call before the run starts.
+    pub fn set_guider(&mut self, guider: GuiderSettings) {
+        self.hysteresis = Hysteresis::new(guider.aggressiveness, 0.1, guider.min_move);
+        self.next_exposure_end_us = self.now_us + guider.exposure_us();
+        self.guider = guider;
     }
 
     pub fn learner_counters(&self) -> LearnerCounters {
@@ -526,7 +568,7 @@ impl Rig {
             let mean = self.exposure_sum / self.exposure_n.max(1) as f64;
             self.exposure_sum = 0.0;
             self.exposure_n = 0;
-            self.next_exposure_end_us += (EXPOSURE_S * 1e6) as u64;
+            self.next_exposure_end_us += self.guider.exposure_us();
             let noise = match self.noise.as_mut() {
                 Some((sigma, g)) => *sigma * g.next(),
                 None => 0.0,
@@ -538,7 +580,8 @@ impl Rig {
     }
 
     fn guide(&mut self, measured: f64) {
-        let guide_rate = self.mount.guide_rate_arcsec_per_s() as f64;
+        // The rate the guider believes in.
+        let guide_rate = self.mount.guide_rate_arcsec_per_s() as f64 * self.guider.calibration;
         let start = (self.now_us + LATENCY_US).max(self.last_pulse_end_us + PULSE_GAP_US);
         if let Some(amount) = self.dither_next.take() {
             let dur = (amount.abs() / guide_rate * 1e6) as u64;
@@ -553,7 +596,9 @@ impl Rig {
             self.lock_arcsec -= amount;
             return;
         }
-        let control = self.hysteresis.step(0.0, measured, 10.0, EXPOSURE_S);
+        let control = self
+            .hysteresis
+            .step(0.0, measured, 10.0, self.guider.exposure_s);
         let dur = ((control.abs() / guide_rate * 1e6) as u64).min(MAX_PULSE_US);
         if dur == 0 {
             return;
@@ -578,9 +623,22 @@ pub struct RunResult {
     pub st4: St4Counters,
 }
 
-/// One full run: `noise_px` 0 is noise-free (the seed is then unused).
+/// One full run behind the default guider: `noise_px` 0 is noise-free (the
+/// seed is then unused).
 pub fn run(case: &Case, firmware: Firmware, noise_px: f64, seed: u64) -> RunResult {
+    run_with(case, firmware, noise_px, seed, GuiderSettings::default())
+}
+
+/// [`run`] behind `guider`.
+pub fn run_with(
+    case: &Case,
+    firmware: Firmware,
+    noise_px: f64,
+    seed: u64,
+    guider: GuiderSettings,
+) -> RunResult {
     let mut rig = Rig::new(case, firmware, noise_px, seed);
+    rig.set_guider(guider);
     rig.run_until((RUN_S * 1e6) as u64);
     RunResult {
         rms: rig.score(),
@@ -605,25 +663,31 @@ pub const CSV_HEADER: &str = "case,noise_px,guider_only,fw_ppec,fw_mkgp";
 
 /// Mean pointing RMS of `firmware` on `case` with `noise_px` of noise (0:
 /// one noise-free run; else the mean over [`SEEDS`], added in seed order).
-fn mean_rms(case: &Case, firmware: Firmware, noise_px: f64) -> f64 {
+fn mean_rms(case: &Case, firmware: Firmware, noise_px: f64, guider: GuiderSettings) -> f64 {
     let seeds: &[u64] = if noise_px > 0.0 { &SEEDS } else { &SEEDS[..1] };
     let rms: Vec<f64> = seeds
         .par_iter()
-        .map(|&seed| run(case, firmware, noise_px, seed).rms)
+        .map(|&seed| run_with(case, firmware, noise_px, seed, guider).rms)
         .collect();
     rms.iter().sum::<f64>() / rms.len() as f64
 }
 
-/// The table for `cases` and noise levels, one row per case and level in
-/// that order; the runs are spread over rayon's threads.
+/// The table for `cases` and noise levels behind the default guider, one
+/// row per case and level in that order; the runs are spread over rayon's
+/// threads.
 pub fn table(cases: &[Case], noise_levels: &[f64]) -> Vec<Row> {
+    table_with(cases, noise_levels, GuiderSettings::default())
+}
+
+/// [`table`] behind `guider`.
+pub fn table_with(cases: &[Case], noise_levels: &[f64], guider: GuiderSettings) -> Vec<Row> {
     let rows: Vec<(&Case, f64)> = cases
         .iter()
         .flat_map(|case| noise_levels.iter().map(move |&noise| (case, noise)))
         .collect();
     rows.into_par_iter()
         .map(|(case, noise)| {
-            let firmware = |fw| mean_rms(case, fw, noise);
+            let firmware = |fw| mean_rms(case, fw, noise, guider);
             let (guider_only, (fw_ppec, fw_mkgp)) = rayon::join(
                 || firmware(Firmware::GuiderOnly),
                 || rayon::join(|| firmware(Firmware::Ppec), || firmware(Firmware::Mkgp)),

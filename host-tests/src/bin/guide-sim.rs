@@ -6,6 +6,7 @@
 //! guide-sim replay [LOG...] [--csv]
 //! guide-sim bench [--csv] [--host-only]
 //! guide-sim st4 [--case ID] [--cases FILE] [--noise PX] [--csv]
+//!               [--aggressiveness A] [--exposure S] [--min-move PX] [--calibration K]
 //! guide-sim mount [--pty PATH] [--tcp PORT] [--case ID] [--cases FILE] [--noise PX]
 //! ```
 //! `guide-sim <subcommand> --help` describes each; the arguments are
@@ -76,7 +77,10 @@ enum Command {
     /// St4 and Guiding; guider only, guider + firmware PPEC (Learner<1>) and
     /// guider + firmware MKGP (Learner<2>). Pointing RMS (arcsec = px) over
     /// t >= 3600 s of 3 h runs; noise 0 and 1 px (seeds 1-3, mean) unless
-    /// --noise PX picks one level; --case ID runs one case.
+    /// --noise PX picks one level; --case ID runs one case. The guider's
+    /// aggressiveness, exposure, minimum move and calibration (its believed
+    /// guide rate over the true one) can differ from what the firmware
+    /// assumes (0.7, 2 s): how much a wrong guess costs.
     #[command(verbatim_doc_comment)]
     St4(St4Args),
     /// A virtual mount for LX200 clients: the firmware's loop on a pty, in real time
@@ -154,6 +158,26 @@ struct St4Args {
     /// Print the table as CSV
     #[arg(long)]
     csv: bool,
+    /// The guider's aggressiveness (the firmware assumes 0.7)
+    #[arg(long, value_name = "A", value_parser = in_range(0.05, 1.0), default_value = "0.7")]
+    aggressiveness: f64,
+    /// The guider's exposure and cycle, s (the firmware assumes 2)
+    #[arg(long, value_name = "S", value_parser = in_range(0.1, 60.0), default_value = "2")]
+    exposure: f64,
+    /// The guider's minimum move, px
+    #[arg(long, value_name = "PX", value_parser = in_range(0.0, 10.0), default_value = "0.2")]
+    min_move: f64,
+    /// The guide rate the guider's calibration found over the true one
+    #[arg(long, value_name = "K", value_parser = in_range(0.1, 10.0), default_value = "1")]
+    calibration: f64,
+}
+
+/// A parser of numbers in [lo, hi].
+fn in_range(lo: f64, hi: f64) -> impl Fn(&str) -> Result<f64, String> + Clone {
+    move |s| match s.parse::<f64>() {
+        Ok(x) if x >= lo && x <= hi => Ok(x),
+        _ => Err(format!("needs a number from {lo} to {hi}")),
+    }
 }
 
 fn noise_px(s: &str) -> Result<f64, String> {
@@ -517,6 +541,10 @@ fn cmd_st4(
         cases,
         noise,
         csv,
+        aggressiveness,
+        exposure,
+        min_move,
+        calibration,
     }: St4Args,
 ) -> ExitCode {
     let Some((path, mut cases)) = load_cases(cases) else {
@@ -533,7 +561,13 @@ fn cmd_st4(
         Some(x) => vec![x],
         None => vec![0.0, 1.0],
     };
-    let rows = st4_sim::table(&cases, &levels);
+    let guider = st4_sim::GuiderSettings {
+        aggressiveness,
+        exposure_s: exposure,
+        min_move,
+        calibration,
+    };
+    let rows = st4_sim::table_with(&cases, &levels, guider);
     if csv {
         println!("{}", st4_sim::CSV_HEADER);
         for r in &rows {
