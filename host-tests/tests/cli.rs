@@ -178,6 +178,25 @@ fn st4_noise_must_be_a_number_of_px() {
 }
 
 #[test]
+fn st4_guider_settings_must_be_in_range() {
+    for (flag, bad) in [
+        ("--aggressiveness", "1.5"),
+        ("--aggressiveness", "0"),
+        ("--exposure", "0"),
+        ("--min-move", "11"),
+        ("--calibration", "NaN"),
+    ] {
+        let o = guide_sim(&["st4", flag, bad]);
+        assert_eq!(o.status.code(), Some(2), "{flag} {bad}");
+        let err = stderr(&o);
+        assert!(
+            err.contains(&format!("'{bad}' for '{flag}")) && err.contains("needs a number from"),
+            "{err}"
+        );
+    }
+}
+
+#[test]
 fn each_subcommand_help_lists_its_options() {
     for (sub, options) in [
         ("table", &["--cases <FILE>", "--csv"][..]),
@@ -185,7 +204,16 @@ fn each_subcommand_help_lists_its_options() {
         ("bench", &["--csv", "--host-only"]),
         (
             "st4",
-            &["--case <ID>", "--cases <FILE>", "--noise <PX>", "--csv"],
+            &[
+                "--case <ID>",
+                "--cases <FILE>",
+                "--noise <PX>",
+                "--csv",
+                "--aggressiveness <A>",
+                "--exposure <S>",
+                "--min-move <PX>",
+                "--calibration <K>",
+            ],
         ),
     ] {
         let o = guide_sim(&[sub, "--help"]);
