@@ -15,6 +15,8 @@
 //! - [`store`]: load and save each record; a save says whether it may erase
 //!   a sector ([`Erase`]), since erasing stalls the CPU for 1-2 s;
 //! - [`erase_gate`]: the flash wrapper that defers erases;
+//! - `recovery`: finishes a sector erase a power cut interrupted, which
+//!   sequential-storage alone can mistake for a page in use;
 //! - [`record`]: the versioned envelope around every record;
 //! - [`config_record`], [`park`]: the configuration's and the park's layouts
 //!   (the model snapshot's layout is the model's, an opaque byte string
@@ -31,6 +33,7 @@ pub mod config_record;
 pub mod erase_gate;
 pub mod park;
 pub mod record;
+mod recovery;
 #[cfg(any(test, feature = "testing"))]
 pub mod sim_flash;
 pub mod store;

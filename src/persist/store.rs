@@ -7,7 +7,9 @@
 //! deferred fails with [`SaveError::EraseDeferred`] and changes nothing.
 //! Loads may erase: a load finding what a power cut left half done (a
 //! half-erased sector) repairs it first, so the firmware loads at boot,
-//! before it tracks.
+//! before it tracks. Every operation that may erase first runs
+//! [`recover`](super::recovery), which finishes a sector erase a cut left
+//! undefined before sequential-storage reads the pages.
 //!
 //! The store keeps no state between calls besides its buffer (the map is
 //! built per call, uncached), so it reads the flash afresh each time: at
@@ -23,6 +25,7 @@ use super::config_record::{self, CONFIG_FORMAT};
 use super::erase_gate::{Erase, EraseGate, GateError};
 use super::park::{Park, PARK_FORMAT};
 use super::record::{Envelope, ENVELOPE_LEN};
+use super::recovery::recover;
 use super::MODEL_RECORD_MAX;
 use crate::mount::config::{ConfigError, Mount};
 
@@ -84,6 +87,13 @@ pub enum SaveError<E> {
     Geometry(MapConfigError),
     /// The flash or the map failed.
     Flash(StoreError<E>),
+}
+
+/// The flash's own error `e`, as the map reports one.
+fn flash_error<E>(e: E) -> StoreError<E> {
+    sequential_storage::Error::Storage {
+        value: GateError::Flash(e),
+    }
 }
 
 /// 4-byte aligned, as some flash drivers want the bytes they program.
@@ -164,6 +174,9 @@ impl<F: NorFlash> Store<F> {
     /// `format`.
     async fn load(&mut self, slot: Slot, format: u16) -> Result<&[u8], LoadError<F::Error>> {
         let config = MapConfig::try_new(self.range.clone()).map_err(LoadError::Geometry)?;
+        recover(&mut self.flash, self.range.clone(), &mut self.buffer.0)
+            .await
+            .map_err(|e| LoadError::Flash(flash_error(e)))?;
         let gate = EraseGate::new(&mut self.flash, Erase::Allow);
         let mut map = MapStorage::<u8, _, _>::new(gate, config, Cache::new_uncached());
         let found = map
@@ -193,6 +206,11 @@ impl<F: NorFlash> Store<F> {
             return Err(SaveError::TooLarge { len: body.len() });
         }
         let config = MapConfig::try_new(self.range.clone()).map_err(SaveError::Geometry)?;
+        if erase == Erase::Allow {
+            recover(&mut self.flash, self.range.clone(), &mut self.buffer.0)
+                .await
+                .map_err(|e| SaveError::Flash(flash_error(e)))?;
+        }
         let gate = EraseGate::new(&mut self.flash, erase);
         let mut map = MapStorage::<u8, _, _>::new(gate, config, Cache::new_uncached());
         let record = Envelope { format, body };
