@@ -8,7 +8,7 @@
 //! Loads may erase: a load finding what a power cut left half done (a
 //! half-erased sector) repairs it first, so the firmware loads at boot,
 //! before it tracks. Every operation that may erase first runs
-//! [`recover`](super::recovery), which finishes a sector erase a cut left
+//! `recovery::recover`, which finishes a sector erase a cut left
 //! undefined before sequential-storage reads the pages.
 //!
 //! The store keeps no state between calls besides its buffer (the map is
