@@ -19,7 +19,7 @@
 #                    in the safe state.
 #   4. firmware:     cargo build --release for each chip, with flash/RAM use;
 #                    fails if the STM32F411CE build exceeds 256 KiB of flash
-#                    (the lower half: the upper is the store's) or 96 KiB
+#                    (its code region in memory.x, sectors 0-5) or 96 KiB
 #                    of static RAM (the rest of its 128 KiB is left
 #                    for the stack), or if its panic call sites (counted in
 #                    the disassembly) exceed PANIC_SITES_MAX.
@@ -34,6 +34,7 @@ cd "$(dirname "$0")"
 
 TARGET=thumbv7em-none-eabihf
 CHIPS=(stm32f411ce stm32f446re stm32f407vg)
+# The code region of memory.x (sectors 0-5); sectors 6-7 are storage.
 F411_FLASH_MAX=$((256 * 1024))
 F411_RAM_MAX=$((96 * 1024))
 # Panic call sites in the F411 release ELF: a ratchet, lowered as they go.

@@ -1,7 +1,9 @@
 //! Hardware-free, allocation-free core of the mount firmware: the
 //! multi-kernel Gaussian-process model of the gear error and the guider
-//! around it, and the command port (`port`: the LX200 interpreter a PC
-//! talks to). Everything here is `no_std` and generic over the scalar type,
+//! around it, the command port (`port`: the LX200 interpreter a PC talks
+//! to), and `persist`: the store that keeps the configuration, the model's
+//! snapshot and the park position in flash across power cycles. Everything
+//! here is `no_std` and generic over the scalar type,
 //! so the same code runs in `f64` on the host (the reference) and in `f32`
 //! on the Cortex-M4F.
 // `no_std` everywhere but in the library's own unit tests, which use the
@@ -11,6 +13,7 @@
 pub mod control_loop;
 pub mod model;
 pub mod mount;
+pub mod persist;
 pub mod port;
 pub mod safety;
 // Random numbers for the unit tests, and through the `testing` feature for

@@ -41,6 +41,7 @@ compile_error!("mount-hal: select only one chip feature");
 
 pub mod board;
 pub mod clocks;
+pub mod flash_map;
 pub mod reset;
 pub mod serial;
 pub mod st4;
