@@ -98,13 +98,23 @@ async fn main(spawner: Spawner) {
     let ra = StepAxis::new(board.ra, RA_DIR_FORWARD_HIGH);
     let dec = StepAxis::new(board.dec, DEC_DIR_FORWARD_HIGH);
 
+    // The configuration: the stored one, or the defaults.
+    let mut store = firmware::storage::open(p.FLASH);
+    let config = match store.as_deref_mut() {
+        Some(store) => firmware::storage::boot_config(store).await,
+        None => MountConfig::default(),
+    };
     let running = start(
         spawner,
-        p.TIM2,
-        p.IWDG,
-        ra,
-        dec,
-        board.st4,
+        Hardware {
+            tim: p.TIM2,
+            iwdg: p.IWDG,
+            ra,
+            dec,
+            st4_pins: board.st4,
+        },
+        config,
+        store,
         last_reset.cause,
     );
     // The ports answer even with the motors disabled: they tell why.
@@ -132,20 +142,34 @@ async fn main(spawner: Spawner) {
     }
 }
 
-/// Validates the configuration, builds the model, starts the step tick,
-/// enables the drivers and starts the guiding task (high priority) and the
-/// learning task (on `spawner`, thread mode), and the watchdog. On a refused configuration:
-/// logs why and returns with the drivers disabled and nothing started.
-fn start(
-    spawner: Spawner,
+/// What `start` drives.
+struct Hardware {
     tim: embassy_stm32::Peri<'static, hal::stepper::StepTimer>,
     iwdg: embassy_stm32::Peri<'static, embassy_stm32::peripherals::IWDG>,
     ra: StepAxis,
     dec: StepAxis,
     st4_pins: hal::board::St4Pins,
+}
+
+/// Validates the configuration, builds the model, starts the step tick,
+/// enables the drivers and starts the guiding task (high priority) and the
+/// learning task (on `spawner`, thread mode, with the store if there is
+/// one), and the watchdog. On a refused configuration: logs why and
+/// returns with the drivers disabled and nothing started.
+fn start(
+    spawner: Spawner,
+    hw: Hardware,
+    config: MountConfig,
+    store: Option<&'static mut firmware::storage::FirmwareStore>,
     reset_cause: mkgp_mount::safety::reset_cause::ResetCause,
 ) -> Result<(), ()> {
-    let config = MountConfig::default();
+    let Hardware {
+        tim,
+        iwdg,
+        ra,
+        dec,
+        st4_pins,
+    } = hw;
     let mount = match config.validate() {
         Ok(mount) => mount,
         Err(e) => {
@@ -174,7 +198,8 @@ fn start(
         defmt::error!("the model was already built");
         return Err(());
     };
-    match learning_task(learner) {
+    let has_store = store.is_some();
+    match learning_task(learner, store) {
         Ok(token) => spawner.spawn(token),
         Err(_) => {
             defmt::error!("learning task could not be spawned");
@@ -189,7 +214,7 @@ fn start(
     let high = EXECUTOR_HIGH.start(interrupt::SDIO);
     // From here on a hung guiding task resets the board.
     let watchdog = hal::reset::Watchdog::start(iwdg, WATCHDOG_TIMEOUT_US);
-    match guiding_task(edges, mount, watchdog, reset_cause) {
+    match guiding_task(edges, mount, watchdog, reset_cause, has_store) {
         Ok(token) => high.spawn(token),
         Err(_) => {
             defmt::error!("guiding task could not be spawned");

@@ -14,6 +14,8 @@
 //! - [`reset`]: the reset flags, a reset on demand and the independent
 //!   watchdog.
 //! - [`serial`]: the command port's transports, USB CDC-ACM and UARTs.
+//! - [`flash_map`], [`storage`]: where the store's sectors are, and the
+//!   flash driver that reaches them.
 //!
 //! This crate knows the hardware only; what edges mean and how many steps to
 //! make is the `mkgp-mount` library's business, glued together in the
@@ -46,6 +48,7 @@ pub mod reset;
 pub mod serial;
 pub mod st4;
 pub mod stepper;
+pub mod storage;
 
 /// Re-exported so that users of the board types need not name the version.
 pub use embassy_stm32;

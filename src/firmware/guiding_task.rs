@@ -22,7 +22,7 @@ use mkgp_mount::control_loop::port_mount::{LearnedFrame, PortMount, PortState};
 use mkgp_mount::control_loop::st4_feed::{EdgeQueue, EdgeSource, RawEdge};
 use mkgp_mount::control_loop::storm::StormGuard;
 use mkgp_mount::control_loop::{ControlLoop, FrameRecord};
-use mkgp_mount::mount::config::Mount;
+use mkgp_mount::mount::config::{Mount, MountConfig};
 use mkgp_mount::mount::guiding::FRAME_QUEUE;
 use mkgp_mount::mount::st4::{Line, St4Counters};
 use mkgp_mount::port::mount_port::{Identity, StepCounts};
@@ -62,6 +62,10 @@ pub static LEARNED: Signal<CriticalSectionRawMutex, LearnedFrame> = Signal::new(
 
 /// A model reset asked on a command port, for the learning task.
 pub static RESET_MODEL: Signal<CriticalSectionRawMutex, ()> = Signal::new();
+
+/// A configuration to save, asked on a command port, for the learning task
+/// (which owns the store).
+pub static SAVE_CONFIG: Signal<CriticalSectionRawMutex, MountConfig> = Signal::new();
 
 /// What the ports report as the firmware.
 const IDENTITY: Identity = Identity {
@@ -188,6 +192,9 @@ impl Ports {
         if self.state.take_reset_request() {
             RESET_MODEL.signal(());
         }
+        if let Some(config) = self.state.take_save_request() {
+            SAVE_CONFIG.signal(config);
+        }
     }
 
     /// A learned frame: the summary for the queries, its telemetry line to
@@ -210,11 +217,13 @@ pub async fn guiding_task(
     mount: Mount,
     mut watchdog: Watchdog,
     reset_cause: ResetCause,
+    has_store: bool,
 ) {
     let mut ports = Ports {
         interpreters: [Interpreter::new(), Interpreter::new()],
         state: PortState::new(&mount, IDENTITY, reset_cause),
     };
+    ports.state.store = has_store;
     let (ra_steps, _) = step_counts();
     let (mut lp, rates) = ControlLoop::start(&mount, Instant::now().as_micros(), ra_steps);
     let rates = set_rates(rates);

@@ -9,8 +9,11 @@ use mkgp_mount::control_loop::port_mount::LearnedFrame;
 use mkgp_mount::mount::config::Mount;
 use mkgp_mount::mount::learner::Learner;
 
-use crate::firmware::guiding_task::{FRAMES, LEARNED, RESET_MODEL};
+use embassy_futures::select::{select, Either};
+
+use crate::firmware::guiding_task::{FRAMES, LEARNED, RESET_MODEL, SAVE_CONFIG};
 use crate::firmware::log;
+use crate::firmware::storage::{self, FirmwareStore};
 use crate::STAGES;
 
 /// The model's storage: a static, handed out once.
@@ -33,12 +36,24 @@ pub fn make_learner(mount: &Mount) -> Option<&'static mut Learner<STAGES>> {
 
 /// Runs the model once per guide frame (the longest thing that runs here)
 /// and hands the learned frame with its feed-forward to the guiding task.
-/// A model reset asked on a port is carried out before the next frame.
+/// A model reset asked on a port is carried out before the next frame; a
+/// configuration save asked on a port goes to the store at once.
 /// Everything else preempts it.
 #[embassy_executor::task]
-pub async fn learning_task(learner: &'static mut Learner<STAGES>) {
+pub async fn learning_task(
+    learner: &'static mut Learner<STAGES>,
+    mut store: Option<&'static mut FirmwareStore>,
+) {
     loop {
-        let msg = FRAMES.receive().await;
+        let msg = match select(FRAMES.receive(), SAVE_CONFIG.wait()).await {
+            Either::First(msg) => msg,
+            Either::Second(config) => {
+                if let Some(store) = store.as_deref_mut() {
+                    storage::save_config(store, config).await;
+                }
+                continue;
+            }
+        };
         if RESET_MODEL.try_take().is_some() {
             learner.reset();
             defmt::warn!("model reset, as asked on the command port");

@@ -7,3 +7,4 @@ pub mod learning_task;
 pub mod log;
 pub mod port_io;
 pub mod step_tick;
+pub mod storage;

@@ -110,7 +110,7 @@ fn write_real(v: f32, reply: &mut Reply) {
 fn write_digits(a: f64, magnitude: i32, digits: i32, out: &mut Reply) {
     // The decimals that leaves after the point: none for large values, at
     // most 12 (below 1e-3 fewer digits remain; no field is that small).
-    let decimals = (digits - 1 - magnitude).max(0).min(12) as u32;
+    let decimals = (digits - 1 - magnitude).clamp(0, 12) as u32;
     let scale = libm::pow(10.0, f64::from(decimals));
     // Below 1e15 (no decimals) or 1e9 x 10 (with them): exact in a u64.
     let scaled = libm::round(a * scale) as u64;
@@ -119,7 +119,7 @@ fn write_digits(a: f64, magnitude: i32, digits: i32, out: &mut Reply) {
     out.uint(scaled / unit);
     let mut fraction = scaled % unit;
     let mut width = decimals as usize;
-    while width > 0 && fraction % 10 == 0 {
+    while width > 0 && fraction.is_multiple_of(10) {
         fraction /= 10;
         width -= 1;
     }
