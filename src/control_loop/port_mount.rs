@@ -16,7 +16,7 @@
 //!   after each frame it learned; a model reset asked on the port is a
 //!   request the caller takes ([`PortState::take_reset_request`]).
 
-use heapless::Vec;
+use heapless::{Deque, Vec};
 
 use crate::control_loop::ControlLoop;
 use crate::model::guider::Faults;
@@ -152,6 +152,23 @@ impl LearnedFrame {
     }
 }
 
+/// What the port asked of the store, for the caller that owns it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum StoreRequest {
+    /// Save this configuration (`:~KW#`); the next start uses it.
+    Config(MountConfig),
+    /// Save the learned model now (`:~W#`).
+    Model,
+    /// Parked with the axes at these counts (`:hP#`): save them and the
+    /// model.
+    Park(StepCounts),
+    /// Unparked (`:hR#`): the saved counts no longer say where the worm is.
+    Unpark,
+}
+
+/// Store requests waiting for the caller: a burst of commands fits.
+const STORE_REQUESTS: usize = 4;
+
 /// Where a sync put the mount: the coordinates and the counters then.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct SyncPoint {
@@ -175,10 +192,12 @@ pub struct PortState {
     reset_requested: bool,
     /// The configuration a save stores and the next start uses.
     pending: MountConfig,
-    save_requested: bool,
-    /// The caller has a store that takes [`PortState::take_save_request`]'s
-    /// configuration; without one `:~KW#` is refused.
+    /// The caller has a store that takes [`PortState::take_store_request`]'s
+    /// requests; without one the saves are refused.
     pub store: bool,
+    requests: Deque<StoreRequest, STORE_REQUESTS>,
+    /// Parked (`:hP#`): no motion from the port until unparked.
+    pub parked: bool,
 }
 
 impl PortState {
@@ -194,15 +213,20 @@ impl PortState {
             reset_cause,
             reset_requested: false,
             pending: *mount.config(),
-            save_requested: false,
             store: false,
+            requests: Deque::new(),
+            parked: false,
         }
     }
 
-    /// The pending configuration, if a save was asked since the last call
-    /// (`:~KW#`).
-    pub fn take_save_request(&mut self) -> Option<MountConfig> {
-        core::mem::take(&mut self.save_requested).then_some(self.pending)
+    /// The oldest request for the store not yet taken.
+    pub fn take_store_request(&mut self) -> Option<StoreRequest> {
+        self.requests.pop_front()
+    }
+
+    /// Queues `request` if there is a store and room.
+    fn ask_store(&mut self, request: StoreRequest) -> bool {
+        self.store && self.requests.push_back(request).is_ok()
     }
 
     /// Whether a model reset was asked since the last call (`:~R#`).
@@ -325,11 +349,15 @@ impl MountPort for PortMount<'_> {
 
     fn guide(&mut self, pulse: GuidePulse) {
         // A refusal is counted by the loop; the port has no reply for it.
-        let _ = self.control.port_guide(pulse, self.now_us);
+        if !self.state.parked {
+            let _ = self.control.port_guide(pulse, self.now_us);
+        }
     }
 
     fn move_at(&mut self, line: Line, rate: ManualRate) {
-        let _ = self.control.port_move(line, rate, self.now_us);
+        if !self.state.parked {
+            let _ = self.control.port_move(line, rate, self.now_us);
+        }
     }
 
     fn stop(&mut self, axis: Axis) {
@@ -337,7 +365,8 @@ impl MountPort for PortMount<'_> {
     }
 
     fn set_tracking(&mut self, on: bool) {
-        self.control.set_tracking(on);
+        // Parked: tracking stays off until unparked.
+        self.control.set_tracking(on && !self.state.parked);
     }
 
     fn status(&mut self) -> Status {
@@ -353,6 +382,7 @@ impl MountPort for PortMount<'_> {
         };
         Status {
             tracking: self.control.tracking(),
+            parked: self.state.parked,
             guiding: pulse,
             pec,
         }
@@ -420,6 +450,29 @@ impl MountPort for PortMount<'_> {
     }
 
     fn save_config(&mut self) -> bool {
-        self.state.store && !core::mem::replace(&mut self.state.save_requested, true)
+        let config = self.state.pending;
+        self.state.ask_store(StoreRequest::Config(config))
+    }
+
+    fn park(&mut self) {
+        self.control.port_stop(Axis::Ra, self.now_us);
+        self.control.port_stop(Axis::Dec, self.now_us);
+        self.control.set_tracking(false);
+        if !self.state.parked {
+            self.state.parked = true;
+            let _ = self.state.ask_store(StoreRequest::Park(self.steps));
+        }
+    }
+
+    fn unpark(&mut self) {
+        if self.state.parked {
+            self.state.parked = false;
+            self.control.set_tracking(true);
+            let _ = self.state.ask_store(StoreRequest::Unpark);
+        }
+    }
+
+    fn save_model(&mut self) -> bool {
+        self.state.ask_store(StoreRequest::Model)
     }
 }

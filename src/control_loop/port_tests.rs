@@ -2,7 +2,7 @@
 //! ST4 pulses, manual motion, ownership, position, the port's queries, and
 //! random command streams.
 
-use super::port_mount::{PortMount, PortState};
+use super::port_mount::{PortMount, PortState, StoreRequest};
 use super::st4_feed::{EdgeQueue, EdgeSource, RawEdge};
 use super::*;
 use crate::mount::config::MountConfig;
@@ -362,13 +362,18 @@ fn the_port_reads_the_loop_and_the_learner_summary() {
         "guider_aggressiveness=0.7#"
     );
     assert_eq!(r.ask(":~Kguider_aggressiveness=0.5#"), "1");
-    assert_eq!(r.ask(":~KW#"), "0");
-    assert_eq!(r.state.take_save_request(), None);
+    assert_eq!(r.ask(":~KW#:~W#"), "00");
+    assert_eq!(r.state.take_store_request(), None);
     r.state.store = true;
-    assert_eq!(r.ask(":~KW#:~KW#"), "10");
-    let saved = r.state.take_save_request().unwrap();
+    assert_eq!(r.ask(":~KW#:~W#"), "11");
+    let Some(StoreRequest::Config(saved)) = r.state.take_store_request() else {
+        panic!("a configuration to save");
+    };
     assert_eq!(saved.guider_aggressiveness, 0.5);
-    assert_eq!(r.state.take_save_request(), None);
+    assert_eq!(r.state.take_store_request(), Some(StoreRequest::Model));
+    assert_eq!(r.state.take_store_request(), None);
+    // A burst beyond the queue: the rest refused.
+    assert_eq!(r.ask(":~W#:~W#:~W#:~W#:~W#"), "11110");
     // The loop runs on with what it started with.
     assert_eq!(r.mount.config().guider_aggressiveness, 0.7);
 }
@@ -442,4 +447,36 @@ fn random_command_streams_keep_the_rates_and_pulses_bounded() {
     let p = r.lp.port_counters();
     assert!(ram_cmds > 10_000 && p.port_pulses > 1_000 && p.manual_moves > 1_000);
     assert!(p.port_refused > 0 && p.st4_refused > 0, "{p:?}");
+}
+
+/// `:hP#` parks where the mount points: port motion and tracking stop, the
+/// counts go to the store; while parked the port moves nothing; `:hR#`
+/// tracks again and tells the store.
+#[test]
+fn park_and_unpark() {
+    let mut r = Rig::new();
+    r.state.store = true;
+    r.run_until(S);
+    assert!(r.rates.ra_steps_per_s > 0.0);
+    assert_eq!(r.ask(":GU#"), "Np^#");
+    assert_eq!(r.ask(":Mgn5000#:hP#"), "");
+    let parked_at = r.steps();
+    r.run_until(2 * S);
+    assert_eq!(r.rates.ra_steps_per_s, 0.0);
+    assert_eq!(r.rates.dec_steps_per_s, 0.0);
+    assert_eq!(r.steps(), parked_at);
+    assert_eq!(
+        r.state.take_store_request(),
+        Some(StoreRequest::Park(parked_at))
+    );
+    assert_eq!(r.ask(":GU#"), "nNP^#");
+    // Parked: no pulse, no tracking from the port, no second park.
+    assert_eq!(r.ask(":Mgn1000#:Te#:hP#"), "1");
+    r.run_until(3 * S);
+    assert_eq!(r.steps(), parked_at);
+    assert_eq!(r.state.take_store_request(), None);
+    assert_eq!(r.ask(":hR#:GU#"), "Np^#");
+    assert_eq!(r.state.take_store_request(), Some(StoreRequest::Unpark));
+    r.run_until(4 * S);
+    assert!(r.rates.ra_steps_per_s > 0.0);
 }

@@ -158,16 +158,26 @@ impl<F: NorFlash> Store<F> {
         self.save(Slot::Model, format, snapshot, erase).await
     }
 
-    /// The step counts saved at the last park.
+    /// The step counts saved at the last park; `NothingStored` if the
+    /// mount was unparked since ([`Store::clear_park`]).
     pub async fn load_park(&mut self) -> Result<Park, LoadError<F::Error>> {
-        let body = self.load(Slot::Park, PARK_FORMAT).await?;
-        Park::decode(body).ok_or(LoadError::Malformed)
+        match self.load(Slot::Park, PARK_FORMAT).await? {
+            [] => Err(LoadError::NothingStored),
+            body => Park::decode(body).ok_or(LoadError::Malformed),
+        }
     }
 
     /// Saves the step counts at park.
     pub async fn save_park(&mut self, park: Park, erase: Erase) -> Result<(), SaveError<F::Error>> {
         self.save(Slot::Park, PARK_FORMAT, &park.encode(), erase)
             .await
+    }
+
+    /// Unparked: the saved counts no longer say where the worm is. Stored as
+    /// an empty park record (the map removes nothing on a flash whose words
+    /// are written once).
+    pub async fn clear_park(&mut self, erase: Erase) -> Result<(), SaveError<F::Error>> {
+        self.save(Slot::Park, PARK_FORMAT, &[], erase).await
     }
 
     /// The body of the newest complete record in `slot`, if its format is
@@ -318,6 +328,24 @@ mod tests {
                 s.load_config().await,
                 Err(LoadError::NothingStored)
             ));
+        });
+    }
+
+    /// An unpark clears the park, and a new park replaces it.
+    #[test]
+    fn a_cleared_park_is_no_park() {
+        let mut mem = vec![0xFF; 2 * SECTOR];
+        let park = Park {
+            ra_steps: 123_456_789,
+            dec_steps: -42,
+        };
+        with_store(&mut mem, async |s| {
+            s.save_park(park, Erase::Allow).await.unwrap();
+            assert_eq!(s.load_park().await.unwrap(), park);
+            s.clear_park(Erase::Defer).await.unwrap();
+            assert!(matches!(s.load_park().await, Err(LoadError::NothingStored)));
+            s.save_park(park, Erase::Defer).await.unwrap();
+            assert_eq!(s.load_park().await.unwrap(), park);
         });
     }
 

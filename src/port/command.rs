@@ -101,6 +101,8 @@ pub enum Own {
     ConfigDefaults,
     /// `:~KW#` save the pending configuration for the next start.
     ConfigSave,
+    /// `:~W#` save the learned model now.
+    SaveModel,
 }
 
 /// Whose counters `:~C...#` reads.
@@ -136,6 +138,10 @@ pub enum Command {
     StopAll,
     /// `:Te#` / `:Td#` (OnStep's)
     Tracking(bool),
+    /// `:hP#`: park here (Meade's, OnStep's).
+    Park,
+    /// `:hR#`: unpark (OnStep's).
+    Unpark,
     Own(Own),
 }
 
@@ -202,6 +208,8 @@ pub fn parse(body: &[u8]) -> Result<Command, Refusal> {
         b"Q" => StopAll,
         b"Te" => Tracking(true),
         b"Td" => Tracking(false),
+        b"hP" => Park,
+        b"hR" => Unpark,
         [b'M', b'g', rest @ ..] => {
             let [letter, digits @ ..] = rest else {
                 return Err(Refusal::BadValue);
@@ -242,6 +250,7 @@ fn own(rest: &[u8]) -> Result<Own, Refusal> {
         b"F0" => Own::FeedForward(false),
         b"R" => Own::ResetModel,
         b"V" => Own::Firmware,
+        b"W" => Own::SaveModel,
         b"T1" => Own::Telemetry(true),
         b"T0" => Own::Telemetry(false),
         [b'C', group, start @ ..] => {

@@ -243,6 +243,9 @@ impl Session {
                 mount.set_tracking(on);
                 reply.byte(b'1');
             }
+            // No reply: INDI's LX200 driver reads none after `:hP#`.
+            Command::Park => mount.park(),
+            Command::Unpark => mount.unpark(),
             Command::Own(command) => {
                 if let Some(on) = own::carry_out(command, port, mount, reply) {
                     self.telemetry = on;
@@ -312,14 +315,15 @@ impl Session {
 }
 
 /// OnStep's `:GU#` flags where they apply: `n` not tracking, `N` no goto
-/// under way (always), `p` not parked (always: no park), `G` a guide pulse
+/// under way (always), `p` not parked or `P` parked, `G` a guide pulse
 /// running, then the PEC state (`/` off, `^` learning, `~` playing).
 fn status_flags(mount: &mut impl MountPort, reply: &mut Reply) {
     let status = mount.status();
     if !status.tracking {
         reply.byte(b'n');
     }
-    reply.text(b"Np");
+    reply.byte(b'N');
+    reply.byte(if status.parked { b'P' } else { b'p' });
     if status.guiding {
         reply.byte(b'G');
     }

@@ -74,6 +74,7 @@ pub enum PecState {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Status {
     pub tracking: bool,
+    pub parked: bool,
     /// A guide pulse (ST4 or port) is running on either axis.
     pub guiding: bool,
     pub pec: PecState,
@@ -174,4 +175,13 @@ pub trait MountPort {
     /// Asks for the pending configuration to be saved; `false` if no save
     /// can be asked now (no store, or one under way).
     fn save_config(&mut self) -> bool;
+    /// Parks where the mount points: motion and tracking stop, the step
+    /// counters and the model are saved, so that a mount not moved while
+    /// powered off keeps its gear's phase.
+    fn park(&mut self);
+    /// Tracking again after a park.
+    fn unpark(&mut self);
+    /// Asks for the learned model to be saved now; `false` if it cannot be
+    /// (no store).
+    fn save_model(&mut self) -> bool;
 }

@@ -123,6 +123,9 @@ pub fn carry_out(
         Own::ConfigSave => {
             reply.byte(if mount.save_config() { b'1' } else { b'0' });
         }
+        Own::SaveModel => {
+            reply.byte(if mount.save_model() { b'1' } else { b'0' });
+        }
     }
     None
 }

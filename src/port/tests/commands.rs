@@ -315,6 +315,21 @@ fn own_configuration() {
     assert_eq!(b.mount.calls.last(), Some(&Call::SaveConfig));
 }
 
+/// Park and unpark answer nothing (INDI reads no reply); `:GU#` shows the
+/// park; `:~W#` asks for a model save.
+#[test]
+fn park_unpark_and_model_save() {
+    let mut b = Bench::new();
+    assert_eq!(b.ask(":hP#"), "");
+    assert_eq!(b.ask(":GU#"), "NP~#");
+    assert_eq!(b.ask(":hR#:~W#"), "1");
+    assert_eq!(b.ask(":GU#"), "Np~#");
+    assert_eq!(
+        b.mount.calls[b.mount.calls.len() - 3..],
+        [Call::Park, Call::Unpark, Call::SaveModel]
+    );
+}
+
 #[test]
 fn own_port_counters() {
     let mut b = Bench::new();

@@ -23,6 +23,9 @@ pub enum Call {
     FeedForward(bool),
     ResetModel,
     SaveConfig,
+    Park,
+    Unpark,
+    SaveModel,
 }
 
 pub struct DoubleMount {
@@ -54,6 +57,7 @@ impl DoubleMount {
             },
             status: Status {
                 tracking: true,
+                parked: false,
                 guiding: false,
                 pec: PecState::Playing,
             },
@@ -141,6 +145,18 @@ impl MountPort for DoubleMount {
     }
     fn save_config(&mut self) -> bool {
         self.calls.push(Call::SaveConfig);
+        true
+    }
+    fn park(&mut self) {
+        self.calls.push(Call::Park);
+        self.status.parked = true;
+    }
+    fn unpark(&mut self) {
+        self.calls.push(Call::Unpark);
+        self.status.parked = false;
+    }
+    fn save_model(&mut self) -> bool {
+        self.calls.push(Call::SaveModel);
         true
     }
 }

@@ -90,6 +90,9 @@ const FIXED: &[&[u8]] = &[
     b"~KW",
     b"~Kworm_period_s",
     b"~Kglitch_us",
+    b"hP",
+    b"hR",
+    b"~W",
 ];
 
 fn pick<'a>(rng: &mut SplitMix64, from: &[&'a [u8]]) -> &'a [u8] {
