@@ -171,7 +171,7 @@ fn the_virtual_mount_answers_lx200_on_its_pty() {
     assert!(g.starts_with("ra_pulses=1 dec_pulses=1 frames="), "{g}");
     let l = ask(&mut pty, ":~L#", 1);
     assert!(
-        l.starts_with("learn_pm=") && l.ends_with(" stages=2#"),
+        l.starts_with("learn_pm=") && l.ends_with(" stages=2 from=cold#"),
         "{l}"
     );
     assert_eq!(

@@ -28,8 +28,8 @@ use crate::mount::learner::{Learner, LearnerCounters};
 use crate::mount::st4::St4Counters;
 use crate::port::coords::{Dec, Equatorial, Ra};
 use crate::port::mount_port::{
-    Axis, Counter, CounterGroup, GuidePulse, Identity, Learning, Line, ManualRate, MountPort,
-    PecState, Stage, Status, StepCounts,
+    Axis, Counter, CounterGroup, GuidePulse, Identity, Learning, Line, ManualRate, ModelOrigin,
+    MountPort, PecState, Stage, Status, StepCounts,
 };
 use crate::port::telemetry::TelemetryFrame;
 use crate::safety::reset_cause::ResetCause;
@@ -198,6 +198,8 @@ pub struct PortState {
     requests: Deque<StoreRequest, STORE_REQUESTS>,
     /// Parked (`:hP#`): no motion from the port until unparked.
     pub parked: bool,
+    /// Where the model came from at start-up (the caller's to set).
+    pub model_origin: ModelOrigin,
 }
 
 impl PortState {
@@ -216,6 +218,7 @@ impl PortState {
             store: false,
             requests: Deque::new(),
             parked: false,
+            model_origin: ModelOrigin::Cold,
         }
     }
 
@@ -397,6 +400,7 @@ impl MountPort for PortMount<'_> {
             learned_permille: self.state.learner.learned_permille.min(1000),
             feed_forward_mas_per_s: mas(self.control.guiding().feed_forward_now().into()),
             feed_forward_on: self.control.feed_forward_on(),
+            origin: self.state.model_origin,
         }
     }
 

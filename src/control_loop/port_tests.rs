@@ -9,7 +9,7 @@ use crate::mount::config::MountConfig;
 use crate::mount::frame::FrameKind;
 use crate::mount::st4::Line;
 use crate::port::coords::{Dec, Equatorial, Ra};
-use crate::port::mount_port::{Identity, StepCounts};
+use crate::port::mount_port::{Identity, ModelOrigin, StepCounts};
 use crate::port::{Interpreter, ReplySink};
 use crate::safety::reset_cause::ResetCause;
 use crate::testing::SplitMix64;
@@ -324,7 +324,10 @@ fn the_port_reads_the_loop_and_the_learner_summary() {
     let mut r = Rig::new();
     r.run_until(S);
     assert_eq!(r.ask(":GVP#:GVN#"), "mkgp-mount#0.1.0#");
-    assert_eq!(r.ask(":~L#"), "learn_pm=0 ff_mas_s=0 ff_on=1 stages=0#");
+    assert_eq!(
+        r.ask(":~L#"),
+        "learn_pm=0 ff_mas_s=0 ff_on=1 stages=0 from=cold#"
+    );
     r.state.learner.learned_permille = 420;
     let stage = crate::port::mount_port::Stage {
         period_ms: 478_689,
@@ -333,7 +336,11 @@ fn the_port_reads_the_loop_and_the_learner_summary() {
     };
     r.state.learner.stages.push(stage).unwrap();
     r.state.learner.counters.frames = 7;
-    assert_eq!(r.ask(":~L#"), "learn_pm=420 ff_mas_s=0 ff_on=1 stages=1#");
+    r.state.model_origin = ModelOrigin::Park;
+    assert_eq!(
+        r.ask(":~L#"),
+        "learn_pm=420 ff_mas_s=0 ff_on=1 stages=1 from=park#"
+    );
     assert_eq!(
         r.ask(":~S0#:~S1#"),
         "period_ms=478689 amp_mas=3000 gate_pm=900#none#"

@@ -100,6 +100,34 @@ pub struct Learning {
     pub feed_forward_mas_per_s: i32,
     /// Whether the feed-forward is switched on.
     pub feed_forward_on: bool,
+    /// Where the model came from at start-up.
+    pub origin: ModelOrigin,
+}
+
+/// Where the model came from at start-up, and how its gear phase was
+/// found after the power cycle.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ModelOrigin {
+    /// Nothing restored: learning from the prior.
+    #[default]
+    Cold,
+    /// Restored; the phase unknown (no park, no index), found again from
+    /// the first half worm period of data.
+    Relearn,
+    /// Restored from a park: the step counters, hence the phase, carried
+    /// over.
+    Park,
+}
+
+impl ModelOrigin {
+    /// The name `:~L#` gives it.
+    pub fn name(self) -> &'static str {
+        match self {
+            ModelOrigin::Cold => "cold",
+            ModelOrigin::Relearn => "relearn",
+            ModelOrigin::Park => "park",
+        }
+    }
 }
 
 /// One stage of the model (a gear), in fixed point.

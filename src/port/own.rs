@@ -31,6 +31,9 @@ pub fn carry_out(
             reply.key_value(b"ff_on", learning.feed_forward_on.into());
             // At most MAX_STAGES: the cast is exact.
             reply.key_value(b"stages", stages as i64);
+            reply
+                .text(b" from=")
+                .text(learning.origin.name().as_bytes());
             reply.byte(b'#');
         }
         Own::Stage(index) => {

@@ -219,7 +219,7 @@ fn own_learning_and_stages() {
     let mut b = Bench::new();
     assert_eq!(
         b.ask(":~L#"),
-        "learn_pm=423 ff_mas_s=-1250 ff_on=1 stages=2#"
+        "learn_pm=423 ff_mas_s=-1250 ff_on=1 stages=2 from=relearn#"
     );
     assert_eq!(
         b.ask(":~S0#"),

@@ -5,8 +5,8 @@ use crate::mount::config::MountConfig;
 use crate::port::coords::{Dec, Equatorial, Ra};
 use crate::port::interpreter::Interpreter;
 use crate::port::mount_port::{
-    Axis, Counter, CounterGroup, GuidePulse, Identity, Learning, Line, ManualRate, MountPort,
-    PecState, Stage, Status, StepCounts,
+    Axis, Counter, CounterGroup, GuidePulse, Identity, Learning, Line, ManualRate, ModelOrigin,
+    MountPort, PecState, Stage, Status, StepCounts,
 };
 use crate::port::reply::ReplySink;
 use crate::safety::reset_cause::ResetCause;
@@ -104,6 +104,7 @@ impl MountPort for DoubleMount {
             learned_permille: 423,
             feed_forward_mas_per_s: -1_250,
             feed_forward_on: true,
+            origin: ModelOrigin::Relearn,
         }
     }
     fn stage(&mut self, index: usize) -> Option<Stage> {
