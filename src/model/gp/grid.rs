@@ -165,6 +165,44 @@ impl<S: Scalar> Grid<S> {
         Push::Accepted { new_cells }
     }
 
+    /// Refill with saved `cells` (gear error and variance, oldest first, at
+    /// most [`GRID_CELLS`]): cell `i` is centred at `5 i - 2.5` s from the
+    /// origin, and the open cell starts where the last one ends, from the
+    /// last cell's gear error and `anchor_variance` (a variance that makes
+    /// the cells bridging a gap to the next sample count for little).
+    pub fn restore(&mut self, cells: impl Iterator<Item = (S, S)>, anchor_variance: f64) {
+        self.clear();
+        for (gear, variance) in cells.take(GRID_CELLS) {
+            self.emit(gear.to_f64(), variance.to_f64());
+            self.anchor_gear = gear.to_f64();
+        }
+        if self.len == 0 {
+            return;
+        }
+        self.started = true;
+        self.cell_end = CELL_S * self.len as f64;
+        self.last_time = self.cell_end - CELL_S;
+        self.anchor_variance = anchor_variance;
+    }
+
+    /// Where the open cell ends, relative to the origin.
+    pub fn open_cell_end(&self) -> f64 {
+        self.cell_end
+    }
+
+    /// Add `by` to every gear error held (a change of level).
+    pub fn shift_gear(&mut self, by: f64) {
+        let by_s = S::from_f64(by);
+        for i in 0..self.len {
+            let k = (self.head + i) % GRID_CELLS;
+            if let Some(g) = self.gear.get_mut(k) {
+                *g += by_s;
+            }
+        }
+        self.anchor_gear += by;
+        self.gear_sum += by * (self.last_time - (self.cell_end - CELL_S));
+    }
+
     fn emit(&mut self, gear: f64, variance: f64) {
         let k = (self.head + self.len) % GRID_CELLS;
         self.gear[k] = S::from_f64(gear);
