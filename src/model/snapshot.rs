@@ -59,10 +59,15 @@ pub const fn snapshot_len(stages: usize, cells: usize) -> usize {
 /// Where the gear's phase stands after a power cycle, given at restore.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Phase {
-    /// Known (a worm-index sensor, or a park whose RA step count was
-    /// saved): the saved model's gear time = the new gear time +
+    /// Known for every stage (a park whose RA step count was saved, an
+    /// absolute encoder): the saved model's gear time = the new gear time +
     /// `gear_time_offset_s`. The model continues where it was.
     Known { gear_time_offset_s: f64 },
+    /// The worm's phase known, the other stages' not (a worm-index
+    /// sensor): as [`Known`](Self::Known), with an offset that is right
+    /// modulo the worm's period. The saved data is placed at the worm's
+    /// phase, with the shortest gap.
+    Worm { gear_time_offset_s: f64 },
     /// Unknown (neither): the periods, stages and gates are kept as the
     /// prior, the data is not, and the phase is learned again.
     Unknown,
@@ -182,7 +187,10 @@ impl Writer<'_> {
     fn put(&mut self, bytes: &[u8]) {
         let end = self.at.saturating_add(bytes.len());
         if let Some(dst) = self.out.get_mut(self.at..end) {
-            dst.copy_from_slice(bytes);
+            // Byte by byte: `copy_from_slice` keeps a length check's panic.
+            for (d, &b) in dst.iter_mut().zip(bytes) {
+                *d = b;
+            }
         }
         self.at = end;
     }

@@ -5,14 +5,15 @@
 //! A restored grid cannot simply continue on the new clock: the gap between
 //! the saved data and the first new frame is arbitrary (hours, or negative
 //! after a slew back), and the grid is a contiguous ring of 2.8 h. So with
-//! the phase known, the saved cells are placed just before the first new
-//! frame, shifted by whole worm periods (the worm's phase is then exact)
-//! chosen so that the other stages' phases come out as close as they can;
-//! and their level is moved to meet the first observation, since the
-//! gear error the mount reconstructs starts again from 0 each night.
+//! the phase known, the saved cells are placed shortly before the first
+//! new frame where the stages' phases come out right (exactly, if the
+//! offset puts the frame there) or as close as they can, the gap left as
+//! cells without data (as a cloud leaves them); and their level is moved
+//! to meet the first observation, since the gear error the mount
+//! reconstructs starts again from 0 each night.
 
 use super::{Guider, DARK_VARIANCE};
-use crate::model::gp::grid::{CELL_S, GRID_CELLS};
+use crate::model::gp::grid::CELL_S;
 use crate::model::gp::kernel::Kernel;
 use crate::model::numeric::scalar::Scalar;
 use crate::model::snapshot::{encode, Phase, SavedStage, Snapshot, SnapshotError, SNAPSHOT_CELLS};
@@ -23,6 +24,10 @@ use crate::model::spectral::period::PeriodTracker;
 /// periods) and the long SE (700 s) have forgotten the saved data anyway,
 /// and the 2.8 h ring holds the 83 min saved plus the gap.
 const PLACEMENT_PERIODS: u32 = 8;
+/// Step of the placement's fine candidates, s, and their most (a 1.2 h
+/// range at 1 s).
+const PLACEMENT_STEP_S: f64 = 1.0;
+const PLACEMENT_MAX_STEPS: f64 = 4096.0;
 /// Phase error per second of gap between the saved data and the first new
 /// frame, s/s: the relative error of a tracked period (C5 after 8,000 s in
 /// `f32`: 432.23 s for 432 s, 5e-4).
@@ -32,14 +37,14 @@ const GAP_PHASE_DRIFT: f64 = 5e-4;
 const LEVEL_MAX_VARIANCE: f64 = 100.0;
 /// Measured cells whose level is averaged (a minute of data).
 const LEVEL_CELLS: u32 = 12;
-/// The model is fitted again every this many seconds of a bridged gap.
-const BRIDGE_REFIT_S: f64 = 120.0;
 
 /// A restored grid waiting for the first frame.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Resume {
     /// The new clock's reading at the restored grid's time 0.
     grid_zero_s: f64,
+    /// Only the worm's phase is known (`Phase::Worm`).
+    worm_only: bool,
 }
 
 impl<S: Scalar, const N: usize> Guider<S, N> {
@@ -99,7 +104,12 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             self.discovery
                 .restore(s, saved.found, saved.ratio, saved.frames_found);
         }
-        if let Phase::Known { gear_time_offset_s } = phase {
+        let (offset, worm_only) = match phase {
+            Phase::Known { gear_time_offset_s } => (Some(gear_time_offset_s), false),
+            Phase::Worm { gear_time_offset_s } => (Some(gear_time_offset_s), true),
+            Phase::Unknown => (None, false),
+        };
+        if let Some(gear_time_offset_s) = offset {
             // The saved clock = the new clock + the offset.
             let grid_zero_s = snapshot.origin_s() - gear_time_offset_s;
             if grid_zero_s.is_finite() && snapshot.cell_count() > 0 {
@@ -107,7 +117,10 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
                     .cells()
                     .map(|(g, v)| (S::from_f64(g as f64), S::from_f64(v as f64)));
                 self.grid.restore(cells, DARK_VARIANCE);
-                self.resume = Some(Resume { grid_zero_s });
+                self.resume = Some(Resume {
+                    grid_zero_s,
+                    worm_only,
+                });
             }
         }
         Ok(())
@@ -128,50 +141,15 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         let Some(resume) = self.resume.take() else {
             return 0.0;
         };
-        let at = self.placement(time_s - resume.grid_zero_s);
+        let at = self.placement(time_s - resume.grid_zero_s, resume.worm_only);
         let periods = self.trackers.map(|t| t.period_s);
         self.kernel = Kernel::new(&periods, &self.gates);
-        self.bridge_gap(at);
         if let Some(level) = gear.zip(self.mean_from_data(at)).map(|(g, m)| g - m) {
             if level.is_finite() {
                 self.grid.shift_gear(level);
             }
         }
         at
-    }
-
-    /// Fill the grid from the saved data's end to grid time `until` with
-    /// what the restored model predicts there, at the saved cells' mean
-    /// variance: the gear turned unobserved in between, and cells without
-    /// data (as a cloud leaves) would fill the 100-cell subset, which
-    /// chooses by covariance, with cells that carry nothing. The model is
-    /// refitted every [`BRIDGE_REFIT_S`]. Stops short of a full ring.
-    fn bridge_gap(&mut self, until: f64) {
-        let (mut sum, mut n) = (0.0, 0u32);
-        for i in 0..self.grid.len() {
-            let v = self.grid.cell(i).1.to_f64();
-            if v < LEVEL_MAX_VARIANCE {
-                sum += v;
-                n += 1;
-            }
-        }
-        if n == 0 {
-            return;
-        }
-        let variance = sum / f64::from(n);
-        let mut t = self.grid.open_cell_end();
-        while t + CELL_S <= until && self.grid.len() < GRID_CELLS {
-            let Some(base) = self.mean_from_data(t + 0.5 * BRIDGE_REFIT_S) else {
-                return;
-            };
-            let centre = t + 0.5 * BRIDGE_REFIT_S;
-            let block_end = (t + BRIDGE_REFIT_S).min(until - CELL_S);
-            while t <= block_end && self.grid.len() < GRID_CELLS {
-                let change = self.gp.predict_change(&self.grid, &self.kernel, centre, t);
-                self.grid.push(t, base + change.to_f64(), variance);
-                t += CELL_S;
-            }
-        }
     }
 
     /// The model's mean at grid time `x` from the data held, fitted around
@@ -202,29 +180,32 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     }
 
     /// Where on the restored grid the first frame goes, given that the
-    /// saved clock puts it at grid time `x`: `x` moved by whole worm
-    /// periods (none if `x` is close enough after the saved data) to within
-    /// [`PLACEMENT_PERIODS`] worm periods after the saved data, where the
-    /// other stages' phases (weighted by their gates) are least off and the
-    /// gap, over which the tracked periods' error adds up, is short: the
-    /// cost is the sum of squares of both in seconds.
-    fn placement(&self, x: f64) -> f64 {
+    /// saved clock puts it at grid time `x`: within [`PLACEMENT_PERIODS`]
+    /// worm periods after the saved data, where the stages' phases
+    /// (weighted by their gates; the worm's is 1) are least off and the gap,
+    /// over which the tracked periods' error adds up, is short: the cost is
+    /// the sum of squares of both in seconds. The candidates are `x` moved
+    /// by whole worm periods (`x` itself if it lies in the range: the model
+    /// then continues exactly) and a [`PLACEMENT_STEP_S`] grid over the
+    /// range, which can trade a little of the worm's phase for much of
+    /// another stage's.
+    fn placement(&self, x: f64, worm_only: bool) -> f64 {
         let end = self.grid.open_cell_end();
         let worm = self.trackers[0].period_s;
-        let mut first = libm::fmod(x - end, worm);
-        if first < 0.0 {
-            first += worm;
-        }
-        let first = end + first;
+        // `x` less whole worm periods, to [end, end + worm). (Not
+        // `libm::fmod`: its integer remainder brings a panic path.)
+        let first = x - libm::floor((x - end) / worm) * worm;
         if !first.is_finite() {
             return end;
+        }
+        if worm_only {
+            return first;
         }
         let cost = |y: f64| -> f64 {
             let stages: f64 = self
                 .trackers
                 .iter()
                 .zip(&self.gates)
-                .skip(1)
                 .map(|(t, &gate)| {
                     let cycles = (y - x) / t.period_s;
                     let off_s = (cycles - libm::round(cycles)) * t.period_s;
@@ -234,13 +215,17 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             let drift_s = GAP_PHASE_DRIFT * (y - end);
             stages + drift_s * drift_s
         };
+        let span = f64::from(PLACEMENT_PERIODS) * worm;
+        let steps = libm::ceil(span / PLACEMENT_STEP_S).min(PLACEMENT_MAX_STEPS) as u32;
+        let whole_periods = (0..PLACEMENT_PERIODS).map(|k| first + f64::from(k) * worm);
+        let grid = (0..steps).map(|j| end + f64::from(j) * PLACEMENT_STEP_S);
         let mut best = (f64::INFINITY, first);
-        for k in 0..PLACEMENT_PERIODS {
-            let y = first + f64::from(k) * worm;
-            let cost = cost(y);
-            // Strictly better only: a tie keeps the shorter gap.
-            if cost < best.0 {
-                best = (cost, y);
+        for y in whole_periods.chain(grid) {
+            let c = cost(y);
+            // Strictly better only: of equals the first (the exact worm
+            // phase, the shorter gap) stays.
+            if c < best.0 {
+                best = (c, y);
             }
         }
         best.1
@@ -336,7 +321,7 @@ mod tests {
         std::println!(
             "steady {steady}; park: known {k} unknown {u} cold {c}; far: {far_k} {far_u} {far_c}"
         );
-        // Measured: steady 0.060; park 0.062 0.398 0.578; far 0.201 0.442 0.585.
+        // Measured: steady 0.060; park 0.062 0.398 0.578; far 0.171 0.442 0.585.
         assert!(k < 1.1 * steady, "{k} vs {steady}");
         assert!(far_k < 0.5 * far_c, "{far_k} vs {far_c}");
         assert!(

@@ -6,7 +6,8 @@
 //! no panic call survives optimisation in anything this binary runs:
 //! `Guider<f32, 2>`'s `frame`, `dark_frame` and `dithered` (the PC-guider
 //! entry points), and the mount's `MountConfig::validate`, `Learner::new`
-//! and `Learner::learn` (which runs `Guider::observe`), on inputs the
+//! and `Learner::learn` (which runs `Guider::observe`), `Learner::snapshot`
+//! and `Learner::restore` (and the first frames after it), on inputs the
 //! compiler cannot see through (`black_box`). A link error
 //! naming `model_code_may_panic` means a panic path is back; the firmware's
 //! own count (`panic_sites` in test.sh) shows where.
@@ -26,6 +27,7 @@ use core::hint::black_box;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hio;
 use mkgp_mount::model::guider::{Guider, GuiderConfig};
+use mkgp_mount::model::snapshot::{Phase, SNAPSHOT_MAX};
 use mkgp_mount::mount::config::MountConfig;
 use mkgp_mount::mount::frame::{Frame, FrameKind};
 use mkgp_mount::mount::learner::Learner;
@@ -87,6 +89,32 @@ fn main() -> ! {
             filled: false,
         };
         sum += learner.learn(black_box(frame)).rate_arcsec_per_s;
+    }
+    // A power cycle: the model saved, and restored into another learner
+    // (the one above again: a second model would not fit the stack), with
+    // the phase known, and the frames that place its data.
+    let mut bytes = [0u8; SNAPSHOT_MAX];
+    let n = learner.snapshot(black_box(&mut bytes)).unwrap_or(0);
+    let saved = black_box(bytes.get(..n).unwrap_or(&[]));
+    let phase = black_box(Phase::Known {
+        gear_time_offset_s: 1234.0,
+    });
+    let restored = learner.restore(saved, phase).is_ok();
+    for k in 0..20 {
+        let t = black_box(k as f32 * DT);
+        let frame = Frame {
+            gear_time_s: t as f64,
+            interval_s: DT,
+            kind: FrameKind::Measured,
+            gear_error_arcsec: gear_error(t + 1234.0),
+            applied_arcsec: 0.0,
+            pulse_arcsec: black_box(0.1),
+            filled: false,
+        };
+        sum += learner.learn(black_box(frame)).rate_arcsec_per_s;
+    }
+    if !restored {
+        exit(false)
     }
     black_box((applied, sum));
     if let Ok(mut out) = hio::hstdout() {
