@@ -29,31 +29,28 @@ fn check(rows: &[Row], what: &str, ok: impl Fn(&Row) -> bool) {
 #[test]
 fn goals_with_the_gear_moved_while_off() {
     let rows = table(&[0.0, 1.0], Night2Start::Moved);
-    // Equal on C1 with 1 px (the prior is the true worm period, so cold
-    // loses nothing there): restored 0.73112, cold 0.73099.
-    check(&rows, "restored worse than cold by more than 0.1 %", |r| {
-        r.restored_first30 <= 1.001 * r.cold_first30 && r.restored_index_first30 <= r.cold_first30
+    check(&rows, "restored worse than cold", |r| {
+        r.restored_first30 <= r.cold_first30 && r.restored_index_first30 <= r.cold_first30
     });
     // Without an index: the goal is 0.85 x cold on C5-C8 noise-free;
-    // measured 0.73-0.81.
-    check(&rows, "restored > 0.82 x cold on C5-C8", |r| {
+    // measured 0.48-0.73 (with the phase search; 0.73-0.81 without).
+    check(&rows, "restored > 0.75 x cold on C5-C8", |r| {
         !(r.noise_px == 0.0 && ["C5", "C6", "C7", "C8"].contains(&r.case.as_str()))
-            || r.restored_first30 <= 0.82 * r.cold_first30
+            || r.restored_first30 <= 0.75 * r.cold_first30
     });
-    // With the index (the worm's phase only): the goal of 1.15 x settled
-    // holds where the other stages are the worm's harmonics (C1 1.02, C4
-    // 1.06), on C2 and C6, and on every row with 1 px noise but C8 (1.16);
-    // where a second stage's phase is unknown it does not: up to 1.92 (C3
-    // noise-free).
-    check(&rows, "index > 1.95 x settled", |r| {
-        r.restored_index_first30 <= 1.95 * r.settled
+    // With the index (the worm's phase; the others' found by the search):
+    // the goal of 1.15 x settled holds on C1 and C4 (the worm and its
+    // harmonics: 1.02, 1.08) and on every row with 1 px noise (up to 1.12,
+    // C8); it does not on the other noise-free rows: 1.21-1.43 (C5).
+    check(&rows, "index > 1.45 x settled", |r| {
+        r.restored_index_first30 <= 1.45 * r.settled
     });
     check(
         &rows,
-        "index > 1.16 x settled with noise or worm-only",
+        "index > 1.15 x settled with noise or worm-only",
         |r| {
             !(r.noise_px > 0.0 || ["C1", "C4"].contains(&r.case.as_str()))
-                || r.restored_index_first30 <= 1.16 * r.settled
+                || r.restored_index_first30 <= 1.15 * r.settled
         },
     );
 }

@@ -167,6 +167,8 @@ pub struct Guider<S: Scalar, const N: usize = 2> {
     /// A restored grid waiting for the first frame to be placed
     /// (`restore`).
     resume: Option<restore::Resume>,
+    /// Restored data waiting for the phase search (`restore`).
+    phase_search: Option<restore::PhaseSearch>,
 }
 
 // The model-state budget (docs/reference.md, Goals): the board's 128 KiB of
@@ -225,7 +227,8 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         uninit_field!(slot, blend).write(0.0);
         uninit_field!(slot, faults).write(Faults::default());
         uninit_field!(slot, resume).write(None);
-        // SAFETY: all 24 fields are written.
+        uninit_field!(slot, phase_search).write(None);
+        // SAFETY: all 25 fields are written.
         unsafe { slot.assume_init_mut() }
     }
 
@@ -250,6 +253,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             t.disagreement = 1.0;
         }
         self.resume = None;
+        self.phase_search = None;
     }
 
     pub fn config(&self) -> &GuiderConfig<S> {
@@ -576,6 +580,9 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     /// Returns true if the fit failed (the frame then falls back to the
     /// reactive term); with too little data the last fit, if any, is kept.
     fn track_and_fit(&mut self, centre: f64, timestamp: f64) -> bool {
+        if self.phase_search_pending() {
+            return true;
+        }
         let Some(origin) = self.grid.origin() else {
             return false;
         };

@@ -66,10 +66,12 @@ pub enum Phase {
     /// The worm's phase known, the other stages' not (a worm-index
     /// sensor): as [`Known`](Self::Known), with an offset that is right
     /// modulo the worm's period. The saved data is placed at the worm's
-    /// phase, with the shortest gap.
+    /// phase, with the shortest gap; the other stages' phases are found
+    /// as for [`Unknown`](Self::Unknown).
     Worm { gear_time_offset_s: f64 },
     /// Unknown (neither): the periods, stages and gates are kept as the
-    /// prior, the data is not, and the phase is learned again.
+    /// prior, and the phase is found again by matching the first half worm
+    /// period of new data against the saved data.
     Unknown,
 }
 

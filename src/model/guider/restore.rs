@@ -10,10 +10,13 @@
 //! offset puts the frame there) or as close as they can, the gap left as
 //! cells without data (as a cloud leaves them); and their level is moved
 //! to meet the first observation, since the gear error the mount
-//! reconstructs starts again from 0 each night.
+//! reconstructs starts again from 0 each night. With the phase unknown (or
+//! only the worm's), the new data is matched against the saved cells once
+//! half a worm period of it is in, and the saved cells move to the phase
+//! found (the phase search).
 
 use super::{Guider, DARK_VARIANCE};
-use crate::model::gp::grid::CELL_S;
+use crate::model::gp::grid::{CELL_S, GRID_CELLS};
 use crate::model::gp::kernel::Kernel;
 use crate::model::numeric::scalar::Scalar;
 use crate::model::snapshot::{encode, Phase, SavedStage, Snapshot, SnapshotError, SNAPSHOT_CELLS};
@@ -28,6 +31,8 @@ const PLACEMENT_PERIODS: u32 = 8;
 /// range at 1 s).
 const PLACEMENT_STEP_S: f64 = 1.0;
 const PLACEMENT_MAX_STEPS: f64 = 4096.0;
+/// Worm periods of new data the phase search waits for.
+const PHASE_SEARCH_PERIODS: f64 = 0.5;
 /// Phase error per second of gap between the saved data and the first new
 /// frame, s/s: the relative error of a tracked period (C5 after 8,000 s in
 /// `f32`: 432.23 s for 432 s, 5e-4).
@@ -41,10 +46,32 @@ const LEVEL_CELLS: u32 = 12;
 /// A restored grid waiting for the first frame.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Resume {
-    /// The new clock's reading at the restored grid's time 0.
+    /// The new clock's reading at the restored grid's time 0 (with the
+    /// phase unknown, as if the offset were 0).
     grid_zero_s: f64,
-    /// Only the worm's phase is known (`Phase::Worm`).
-    worm_only: bool,
+    place: Place,
+}
+
+/// How the first frame places the restored grid.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Place {
+    /// Where the offset says, the stages' phases matched (`Phase::Known`).
+    AllStages,
+    /// At the worm's phase (`Phase::Worm`).
+    Worm,
+    /// Right after the saved data, for now: the phase is searched once
+    /// there is data to match (`Phase::Unknown`, [`PhaseSearch`]).
+    Search,
+}
+
+/// The new data starts at this held cell; the phase search runs once
+/// [`PHASE_SEARCH_PERIODS`] of it are in.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct PhaseSearch {
+    new_from: usize,
+    /// The restored data is not placed at any known phase: no prediction
+    /// until the search has placed it.
+    blocks: bool,
 }
 
 impl<S: Scalar, const N: usize> Guider<S, N> {
@@ -104,24 +131,19 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             self.discovery
                 .restore(s, saved.found, saved.ratio, saved.frames_found);
         }
-        let (offset, worm_only) = match phase {
-            Phase::Known { gear_time_offset_s } => (Some(gear_time_offset_s), false),
-            Phase::Worm { gear_time_offset_s } => (Some(gear_time_offset_s), true),
-            Phase::Unknown => (None, false),
+        let (offset, place) = match phase {
+            Phase::Known { gear_time_offset_s } => (gear_time_offset_s, Place::AllStages),
+            Phase::Worm { gear_time_offset_s } => (gear_time_offset_s, Place::Worm),
+            Phase::Unknown => (0.0, Place::Search),
         };
-        if let Some(gear_time_offset_s) = offset {
-            // The saved clock = the new clock + the offset.
-            let grid_zero_s = snapshot.origin_s() - gear_time_offset_s;
-            if grid_zero_s.is_finite() && snapshot.cell_count() > 0 {
-                let cells = snapshot
-                    .cells()
-                    .map(|(g, v)| (S::from_f64(g as f64), S::from_f64(v as f64)));
-                self.grid.restore(cells, DARK_VARIANCE);
-                self.resume = Some(Resume {
-                    grid_zero_s,
-                    worm_only,
-                });
-            }
+        // The saved clock = the new clock + the offset.
+        let grid_zero_s = snapshot.origin_s() - offset;
+        if grid_zero_s.is_finite() && snapshot.cell_count() > 0 {
+            let cells = snapshot
+                .cells()
+                .map(|(g, v)| (S::from_f64(g as f64), S::from_f64(v as f64)));
+            self.grid.restore(cells, DARK_VARIANCE);
+            self.resume = Some(Resume { grid_zero_s, place });
         }
         Ok(())
     }
@@ -141,15 +163,138 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         let Some(resume) = self.resume.take() else {
             return 0.0;
         };
-        let at = self.placement(time_s - resume.grid_zero_s, resume.worm_only);
+        if resume.place == Place::Search {
+            self.phase_search = Some(PhaseSearch {
+                new_from: self.grid.len(),
+                blocks: true,
+            });
+            return self.grid.open_cell_end();
+        }
+        let at = self.placement(time_s - resume.grid_zero_s, resume.place == Place::Worm);
         let periods = self.trackers.map(|t| t.period_s);
         self.kernel = Kernel::new(&periods, &self.gates);
         if let Some(level) = gear.zip(self.mean_from_data(at)).map(|(g, m)| g - m) {
             if level.is_finite() {
-                self.grid.shift_gear(level);
+                self.grid.shift_gear(0..self.grid.len(), level);
             }
         }
+        if resume.place == Place::Worm {
+            // The other stages' phases are found by the search; the
+            // first new data lands in the cell after those the frame at
+            // `at` completes.
+            let completed = libm::floor((at - self.grid.open_cell_end()) / CELL_S) + 1.0;
+            self.phase_search = Some(PhaseSearch {
+                new_from: self.grid.len() + completed.max(0.0) as usize,
+                blocks: false,
+            });
+        }
         at
+    }
+
+    /// Whether the model must wait for the phase search (the restored data
+    /// is not placed yet: no prediction); runs the search when a worm
+    /// period of new data is in. Called before each fit.
+    pub(super) fn phase_search_pending(&mut self) -> bool {
+        let Some(search) = self.phase_search else {
+            return false;
+        };
+        let worm_cells = libm::ceil(self.trackers[0].period_s / CELL_S);
+        let new_cells = self.grid.len().saturating_sub(search.new_from);
+        if (new_cells as f64) < PHASE_SEARCH_PERIODS * worm_cells && self.grid.len() < GRID_CELLS {
+            return search.blocks;
+        }
+        self.phase_search = None;
+        self.search_phase(search.new_from, !search.blocks);
+        false
+    }
+
+    /// Match the new data (held cells `saved..`) against every stretch of
+    /// the saved data (cells `..saved`): the shift whose difference is
+    /// flattest (least squares of a level and a slope, measured cells only)
+    /// puts each new cell at the phase of a saved one. The saved data then
+    /// moves back by the gap that makes those equal phases lie a whole
+    /// number of every stage's periods apart (as [`placement`](Self::placement)
+    /// weighs them), and to the new data's level.
+    fn search_phase(&mut self, saved: usize, worm_known: bool) {
+        let new = self.grid.len().saturating_sub(saved);
+        if new < 2 || saved < new {
+            return;
+        }
+        let grid = &self.grid;
+        let measured = |i: usize| {
+            let (g, v) = grid.cell(i);
+            (v.to_f64() < LEVEL_MAX_VARIANCE).then(|| g.to_f64())
+        };
+        let worm = self.trackers[0].period_s;
+        let mut best = (f64::INFINITY, 0, 0.0);
+        for shift in 0..=saved - new {
+            // With the worm's phase known (an index), only the shifts that
+            // keep it (within half a cell) are candidates.
+            let cycles = CELL_S * (saved - shift) as f64 / worm;
+            if worm_known && ((cycles - libm::round(cycles)) * worm).abs() > 0.5 * CELL_S {
+                continue;
+            }
+            let (mut sw, mut sj, mut sjj, mut sr, mut sjr, mut srr) =
+                (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+            for j in 0..new {
+                if let (Some(n), Some(s)) = (measured(saved + j), measured(shift + j)) {
+                    let (x, r) = (j as f64, n - s);
+                    sw += 1.0;
+                    sj += x;
+                    sjj += x * x;
+                    sr += r;
+                    sjr += x * r;
+                    srr += r * r;
+                }
+            }
+            let det = sw * sjj - sj * sj;
+            if !(sw >= 0.5 * new as f64 && det > 0.0) {
+                continue;
+            }
+            let slope = (sw * sjr - sj * sr) / det;
+            let level = (sr - slope * sj) / sw;
+            let residual = (srr - level * sr - slope * sjr) / sw;
+            if residual < best.0 {
+                best = (residual, shift, level);
+            }
+        }
+        let (residual, shift, level) = best;
+        if !residual.is_finite() {
+            return;
+        }
+        // Equal phases now lie (saved - shift) cells apart.
+        let lag = CELL_S * (saved - shift) as f64;
+        let max_gap =
+            libm::ceil(f64::from(PLACEMENT_PERIODS) * worm / CELL_S).min(PLACEMENT_MAX_STEPS);
+        let mut gap = (f64::INFINITY, 0usize);
+        for g in 0..max_gap as usize {
+            let extra = CELL_S * g as f64;
+            let c = self.phase_cost(lag + extra, extra);
+            if c < gap.0 {
+                gap = (c, g);
+            }
+        }
+        self.grid.shift_gear(0..saved, level);
+        self.grid.insert_gap(saved, gap.1, DARK_VARIANCE);
+    }
+
+    /// How far off a placement is, s²: the stages' phases (weighted by
+    /// their gates; the worm's is 1) when equal phases lie `lag` s apart,
+    /// and the phase error the tracked periods gather over a gap of `gap`
+    /// s.
+    fn phase_cost(&self, lag: f64, gap: f64) -> f64 {
+        let stages: f64 = self
+            .trackers
+            .iter()
+            .zip(&self.gates)
+            .map(|(t, &gate)| {
+                let cycles = lag / t.period_s;
+                let off_s = (cycles - libm::round(cycles)) * t.period_s;
+                gate * off_s * off_s
+            })
+            .sum();
+        let drift_s = GAP_PHASE_DRIFT * gap;
+        stages + drift_s * drift_s
     }
 
     /// The model's mean at grid time `x` from the data held, fitted around
@@ -201,20 +346,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         if worm_only {
             return first;
         }
-        let cost = |y: f64| -> f64 {
-            let stages: f64 = self
-                .trackers
-                .iter()
-                .zip(&self.gates)
-                .map(|(t, &gate)| {
-                    let cycles = (y - x) / t.period_s;
-                    let off_s = (cycles - libm::round(cycles)) * t.period_s;
-                    gate * off_s * off_s
-                })
-                .sum();
-            let drift_s = GAP_PHASE_DRIFT * (y - end);
-            stages + drift_s * drift_s
-        };
+        let cost = |y: f64| self.phase_cost(y - x, y - end);
         let span = f64::from(PLACEMENT_PERIODS) * worm;
         let steps = libm::ceil(span / PLACEMENT_STEP_S).min(PLACEMENT_MAX_STEPS) as u32;
         let whole_periods = (0..PLACEMENT_PERIODS).map(|k| first + f64::from(k) * worm);
@@ -321,11 +453,12 @@ mod tests {
         std::println!(
             "steady {steady}; park: known {k} unknown {u} cold {c}; far: {far_k} {far_u} {far_c}"
         );
-        // Measured: steady 0.060; park 0.062 0.398 0.578; far 0.171 0.442 0.585.
+        // Measured: steady 0.060; park 0.062 0.292 0.578; far 0.171 0.267
+        // 0.585 (without the phase search, unknown: 0.398 and 0.442).
         assert!(k < 1.1 * steady, "{k} vs {steady}");
         assert!(far_k < 0.5 * far_c, "{far_k} vs {far_c}");
         assert!(
-            u < 0.8 * c && far_u < 0.8 * far_c,
+            u < 0.55 * c && far_u < 0.55 * far_c,
             "{u} {c} {far_u} {far_c}"
         );
     }
