@@ -42,6 +42,8 @@ extern "C" {
 const DT: f32 = 2.0;
 /// Frames to run: 1,000 frames of 2 s.
 const FRAMES: u32 = 1000;
+/// Frames after each restore: past half the default worm period.
+const RESTORED_FRAMES: u32 = 150;
 
 /// A gear error the compiler cannot fold: a triangle wave of 288 s period
 /// and 5 px amplitude (no libm: this binary links nothing it does not test).
@@ -90,31 +92,39 @@ fn main() -> ! {
         };
         sum += learner.learn(black_box(frame)).rate_arcsec_per_s;
     }
-    // A power cycle: the model saved, and restored into another learner
-    // (the one above again: a second model would not fit the stack), with
-    // the phase known, and the frames that place its data.
+    // A power cycle: the model saved, and restored into a learner (the one
+    // above again: a second model would not fit the stack) with the phase
+    // known, with the worm's and unknown, and the frames that place its
+    // data (the phase search after half a worm period).
     let mut bytes = [0u8; SNAPSHOT_MAX];
     let n = learner.snapshot(black_box(&mut bytes)).unwrap_or(0);
     let saved = black_box(bytes.get(..n).unwrap_or(&[]));
-    let phase = black_box(Phase::Known {
-        gear_time_offset_s: 1234.0,
-    });
-    let restored = learner.restore(saved, phase).is_ok();
-    for k in 0..20 {
-        let t = black_box(k as f32 * DT);
-        let frame = Frame {
-            gear_time_s: t as f64,
-            interval_s: DT,
-            kind: FrameKind::Measured,
-            gear_error_arcsec: gear_error(t + 1234.0),
-            applied_arcsec: 0.0,
-            pulse_arcsec: black_box(0.1),
-            filled: false,
-        };
-        sum += learner.learn(black_box(frame)).rate_arcsec_per_s;
-    }
-    if !restored {
-        exit(false)
+    let phases = [
+        Phase::Known {
+            gear_time_offset_s: 1234.0,
+        },
+        Phase::Worm {
+            gear_time_offset_s: 1234.0,
+        },
+        Phase::Unknown,
+    ];
+    for phase in phases {
+        if learner.restore(saved, black_box(phase)).is_err() {
+            exit(false)
+        }
+        for k in 0..RESTORED_FRAMES {
+            let t = black_box(k as f32 * DT);
+            let frame = Frame {
+                gear_time_s: t as f64,
+                interval_s: DT,
+                kind: FrameKind::Measured,
+                gear_error_arcsec: gear_error(t + 1234.0),
+                applied_arcsec: 0.0,
+                pulse_arcsec: black_box(0.1),
+                filled: false,
+            };
+            sum += learner.learn(black_box(frame)).rate_arcsec_per_s;
+        }
     }
     black_box((applied, sum));
     if let Ok(mut out) = hio::hstdout() {
