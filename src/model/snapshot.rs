@@ -95,6 +95,11 @@ pub enum SnapshotError {
     Checksum,
     /// A value out of its range (the checksum matched: a writer's bug).
     Invalid(Field),
+    /// Not now: restored data is still waiting for its phase search, so
+    /// the grid holds it at no known phase (`Guider::snapshot`). The
+    /// previous save stays the one to keep; half a worm period later the
+    /// model can be saved again.
+    Placing,
 }
 
 /// The field [`SnapshotError::Invalid`] names.

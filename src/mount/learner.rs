@@ -100,7 +100,9 @@ impl<const N: usize> Learner<N> {
     /// Write the learned model into `out` (at most
     /// [`SNAPSHOT_MAX`](crate::model::snapshot::SNAPSHOT_MAX) bytes for
     /// two stages) for the store; returns the length. Not per frame: it
-    /// reads a thousand cells.
+    /// reads a thousand cells. Refused for half a worm period after a
+    /// restore with the phase unknown or only the worm's
+    /// (`SnapshotError::Placing`): keep the previous save then.
     pub fn snapshot(&self, out: &mut [u8]) -> Result<usize, SnapshotError> {
         self.guider.snapshot(out)
     }

@@ -78,8 +78,12 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     /// Write the learned state (see [`crate::model::snapshot`]) into `out`,
     /// at most [`SNAPSHOT_MAX`](crate::model::snapshot::SNAPSHOT_MAX)
     /// bytes for two stages; returns the length written. Not a per-frame
-    /// call: it reads the newest [`SNAPSHOT_CELLS`] cells.
+    /// call: it reads the newest [`SNAPSHOT_CELLS`] cells. Refused
+    /// ([`SnapshotError::Placing`]) while a phase search is pending.
     pub fn snapshot(&self, out: &mut [u8]) -> Result<usize, SnapshotError> {
+        if self.phase_search.is_some() {
+            return Err(SnapshotError::Placing);
+        }
         let stages: [SavedStage; N] = core::array::from_fn(|s| {
             let (found, ratio, frames_found) = self.discovery.saved(s);
             SavedStage {
@@ -461,6 +465,25 @@ mod tests {
             u < 0.55 * c && far_u < 0.55 * far_c,
             "{u} {c} {far_u} {far_c}"
         );
+    }
+
+    /// While the phase search is pending the grid holds the restored data
+    /// at no known phase: no snapshot; after it, one.
+    #[test]
+    fn no_snapshot_until_the_phase_is_found() {
+        use crate::model::snapshot::SnapshotError;
+        let g = learned();
+        let mut buf = [0u8; SNAPSHOT_MAX];
+        let n = g.snapshot(&mut buf).unwrap();
+        let mut r = std::boxed::Box::new(Guider::<f32, 2>::new(*g.config()));
+        r.restore(&Snapshot::parse(&buf[..n], 2).unwrap(), Phase::Unknown)
+            .unwrap();
+        let mut out = [0u8; SNAPSHOT_MAX];
+        run(&mut r, 777.0, 0.0, 0.0, 100.0, 0.0);
+        assert_eq!(r.snapshot(&mut out), Err(SnapshotError::Placing));
+        // Half a worm period (216 s) and a frame.
+        run(&mut r, 777.0, 0.0, 100.0, 240.0, 0.0);
+        assert_eq!(r.snapshot(&mut out), Ok(SNAPSHOT_MAX));
     }
 
     #[test]
