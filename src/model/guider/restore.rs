@@ -31,7 +31,8 @@ const PLACEMENT_PERIODS: u32 = 8;
 /// range at 1 s).
 const PLACEMENT_STEP_S: f64 = 1.0;
 const PLACEMENT_MAX_STEPS: f64 = 4096.0;
-/// Worm periods of new data the phase search waits for.
+/// Worm periods of new data the phase search waits for (measured against
+/// 0.3 and 1: docs/model.md, "Snapshot and restore").
 const PHASE_SEARCH_PERIODS: f64 = 0.5;
 /// Phase error per second of gap between the saved data and the first new
 /// frame, s/s: the relative error of a tracked period (C5 after 8,000 s in
