@@ -14,6 +14,7 @@ pub mod gp;
 pub mod guide_algorithm;
 pub mod models;
 pub mod mount_sim;
+pub mod nights;
 pub mod noise;
 pub mod phd2_log;
 pub mod replay;

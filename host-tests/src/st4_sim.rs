@@ -37,7 +37,7 @@
 //!   negative one. It starts [`LATENCY_US`] after the exposure ends (after
 //!   the previous pulse if that is still running) as raw line edges.
 //! - **Score.** RMS of the pointing error (10 ms samples) over the final two
-//!   thirds, t >= 3600 s of the 10 800 s run.
+//!   thirds, t >= 3600 s of the 10 800 s run (`Rig::score_window_s`).
 
 use crate::cases::Case;
 use crate::guide_algorithm::{GuideAlgorithm, Hysteresis};
@@ -272,6 +272,12 @@ pub struct Rig {
     pub guider_on: bool,
     /// The guider's lock position (arcsec of pointing error it aims at).
     pub lock_arcsec: f64,
+    /// The gear's phase: its error at gear time `t` is the case's at
+    /// `t + gear_phase_s` (0: the gear starts where the case does; another
+    /// night starts elsewhere, `crate::nights`).
+    pub gear_phase_s: f64,
+    /// The score covers these seconds of the run, [from, until).
+    pub score_window_s: (f64, f64),
     /// A dither the guider sends with its next pulse: amount, arcsec.
     dither_next: Option<f64>,
     exposure_sum: f64,
@@ -335,6 +341,8 @@ impl Rig {
             noise: (noise_px > 0.0).then(|| (noise_px, Gaussian::new(seed))),
             guider_on: true,
             lock_arcsec: 0.0,
+            gear_phase_s: 0.0,
+            score_window_s: (SCORE_FROM_S, f64::INFINITY),
             dither_next: None,
             exposure_sum: 0.0,
             exposure_n: 0,
@@ -364,6 +372,15 @@ impl Rig {
 
     pub fn learner_counters(&self) -> LearnerCounters {
         self.learning.learner.counters()
+    }
+
+    /// The firmware's two-stage learner (`Firmware::Mkgp`), e.g. to save
+    /// or restore its model.
+    pub fn mkgp_learner(&mut self) -> Option<&mut Learner<2>> {
+        match &mut self.learning.learner {
+            AnyLearner::Two(l) => Some(l),
+            _ => None,
+        }
     }
 
     /// What the learner knows now, for the command port.
@@ -442,7 +459,7 @@ impl Rig {
     /// The pointing error now: the axis' lag behind the sky, arcsec.
     pub fn pointing_arcsec(&self) -> f64 {
         let gear_s = self.ra_steps() as f64 / self.mount.sidereal_ra_steps_per_s_f64();
-        self.case.gear_error(gear_s) - self.applied_arcsec()
+        self.case.gear_error(gear_s + self.gear_phase_s) - self.applied_arcsec()
     }
 
     /// Residual RMS over the scored samples so far.
@@ -557,7 +574,7 @@ impl Rig {
     fn sample(&mut self) {
         let p = self.pointing_arcsec();
         let t = self.now_us as f64 * 1e-6;
-        if t >= SCORE_FROM_S {
+        if (self.score_window_s.0..self.score_window_s.1).contains(&t) {
             let r = p - self.lock_arcsec;
             self.score_sq += r * r;
             self.score_n += 1;

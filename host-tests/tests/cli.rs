@@ -138,7 +138,7 @@ fn unknown_subcommand_is_a_usage_error() {
 fn no_subcommand_is_a_usage_error() {
     let o = guide_sim(&[]);
     assert_eq!(o.status.code(), Some(2));
-    for sub in ["table", "replay", "bench", "st4"] {
+    for sub in ["table", "replay", "bench", "st4", "nights"] {
         assert!(stderr(&o).contains(sub), "{}", stderr(&o));
     }
 }
@@ -215,6 +215,16 @@ fn each_subcommand_help_lists_its_options() {
                 "--calibration <K>",
             ],
         ),
+        (
+            "nights",
+            &[
+                "--case <ID>",
+                "--cases <FILE>",
+                "--noise <PX>",
+                "--park",
+                "--csv",
+            ],
+        ),
     ] {
         let o = guide_sim(&[sub, "--help"]);
         assert!(o.status.success(), "{sub}: {}", stderr(&o));
@@ -231,7 +241,7 @@ fn help_lists_the_subcommands() {
     let o = guide_sim(&["--help"]);
     assert!(o.status.success());
     let out = stdout(&o);
-    for sub in ["table", "replay", "bench", "st4"] {
+    for sub in ["table", "replay", "bench", "st4", "nights"] {
         assert!(out.contains(&format!("  {sub} ")), "{out}");
     }
 }

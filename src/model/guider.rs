@@ -24,6 +24,8 @@ use crate::model::spectral::fft::FFT_LEN;
 use crate::model::spectral::period::PeriodTracker;
 use crate::model::spectral::spectrum::{Spectrum, NYQUIST_BIN};
 
+mod restore;
+
 /// Frames of proportional control without learning after a dither.
 pub const DITHER_FRAMES: u8 = 10;
 /// Frames before the model is consulted at all.
@@ -162,6 +164,11 @@ pub struct Guider<S: Scalar, const N: usize = 2> {
     learning_progress: f64,
     blend: f64,
     faults: Faults,
+    /// A restored grid waiting for the first frame to be placed
+    /// (`restore`).
+    resume: Option<restore::Resume>,
+    /// Restored data waiting for the phase search (`restore`).
+    phase_search: Option<restore::PhaseSearch>,
 }
 
 // The model-state budget (docs/reference.md, Goals): the board's 128 KiB of
@@ -219,7 +226,9 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         uninit_field!(slot, learning_progress).write(0.0);
         uninit_field!(slot, blend).write(0.0);
         uninit_field!(slot, faults).write(Faults::default());
-        // SAFETY: all 23 fields are written.
+        uninit_field!(slot, resume).write(None);
+        uninit_field!(slot, phase_search).write(None);
+        // SAFETY: all 25 fields are written.
         unsafe { slot.assume_init_mut() }
     }
 
@@ -243,6 +252,8 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         for t in &mut self.trackers {
             t.disagreement = 1.0;
         }
+        self.resume = None;
+        self.phase_search = None;
     }
 
     pub fn config(&self) -> &GuiderConfig<S> {
@@ -290,6 +301,9 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         }
         let settling = self.settle_one_frame();
         let good = self.is_guide_error(input.to_f64());
+        if self.frames == 0 {
+            self.start_clock(time_s, (good && !settling).then(|| input.to_f64()));
+        }
         let reactive = self.config.control_gain * input;
         if settling {
             // Settling after a dither: the measurement is not gear error,
@@ -356,9 +370,13 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         }
         let settling = self.settle_one_frame();
         let measured = gear_error.filter(|g| self.is_guide_error(g - unmeasured_estimate));
+        let measured = measured.filter(|_| !settling);
+        if self.frames == 0 {
+            self.start_clock(time_s, measured);
+        }
         let (gear, variance) = match measured {
-            Some(g) if !settling => (g, measurement_variance(snr.to_f64())),
-            _ => (unmeasured_estimate, DARK_VARIANCE),
+            Some(g) => (g, measurement_variance(snr.to_f64())),
+            None => (unmeasured_estimate, DARK_VARIANCE),
         };
         let (timestamp, prediction) = self.model_step(time_s, time_step);
         // 0 until the model has earned trust and after a failed fit (the
@@ -377,6 +395,9 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     pub fn dark_frame(&mut self, time_s: f64, time_step: S) -> S {
         if !self.accept_time(time_s) {
             return S::ZERO;
+        }
+        if self.frames == 0 {
+            self.start_clock(time_s, None);
         }
         self.dark_step(time_s, time_step)
     }
@@ -513,13 +534,17 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         }
     }
 
+    /// The first frame after construction or a reset starts the clock
+    /// (gear time 0), or continues a restored model (`restore`).
+    /// `gear`: the frame's gear error, if measured.
+    fn start_clock(&mut self, time_s: f64, gear: Option<f64>) {
+        self.last_time = time_s;
+        self.start_time = time_s - self.resume_restored(time_s, gear);
+    }
+
     /// Gear time of the current frame: the midpoint of the interval since
     /// the previous frame, plus the dither offset.
     fn timestamp(&mut self, time_s: f64) -> f64 {
-        if self.frames == 0 {
-            self.start_time = time_s;
-            self.last_time = time_s;
-        }
         let delta = time_s - self.last_time;
         self.last_time = time_s;
         (time_s - self.start_time) - 0.5 * delta + self.dither_offset
@@ -555,6 +580,9 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     /// Returns true if the fit failed (the frame then falls back to the
     /// reactive term); with too little data the last fit, if any, is kept.
     fn track_and_fit(&mut self, centre: f64, timestamp: f64) -> bool {
+        if self.phase_search_pending() {
+            return true;
+        }
         let Some(origin) = self.grid.origin() else {
             return false;
         };

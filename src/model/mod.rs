@@ -12,4 +12,5 @@ pub mod guider;
 pub(crate) mod in_place;
 pub mod ldlt;
 pub mod numeric;
+pub mod snapshot;
 pub mod spectral;

@@ -12,6 +12,7 @@ use core::mem::MaybeUninit;
 use crate::model::guider::{Faults, Guider, GuiderConfig, DITHER_FRAMES};
 use crate::model::in_place::{build, uninit_field};
 use crate::model::numeric::clamp;
+use crate::model::snapshot::{Phase, Snapshot, SnapshotError};
 use crate::mount::config::Mount;
 use crate::mount::frame::{FeedForward, Frame, FrameKind};
 
@@ -102,6 +103,29 @@ impl<const N: usize> Learner<N> {
         self.guider.reset();
         self.last_gear_s = None;
         self.settling = 0;
+    }
+
+    /// Write the learned model into `out` (at most
+    /// [`SNAPSHOT_MAX`](crate::model::snapshot::SNAPSHOT_MAX) bytes for
+    /// two stages) for the store; returns the length. Not per frame: it
+    /// reads a thousand cells. Refused for half a worm period after a
+    /// restore with the phase unknown or only the worm's
+    /// (`SnapshotError::Placing`): keep the previous save then.
+    pub fn snapshot(&self, out: &mut [u8]) -> Result<usize, SnapshotError> {
+        self.guider.snapshot(out)
+    }
+
+    /// After a power cycle: take the model back from a snapshot's bytes,
+    /// checked first (an error leaves the learner as it was). `phase`: whether
+    /// the gear's phase carried over (index or park) and by how much; see
+    /// [`Phase`]. Gear time starts again with the next frame; the counters
+    /// stay.
+    pub fn restore(&mut self, bytes: &[u8], phase: Phase) -> Result<(), SnapshotError> {
+        let snapshot = Snapshot::parse(bytes, N)?;
+        self.guider.restore(&snapshot, phase)?;
+        self.last_gear_s = None;
+        self.settling = 0;
+        Ok(())
     }
 
     /// Whether the model refused the last frame: a bad observation or
@@ -210,6 +234,51 @@ mod tests {
         });
         let c = l.counters();
         assert_eq!((c.frames, c.learned, c.dithers), (51, 50, 1));
+    }
+
+    /// A learner restored from another's bytes holds the same model; bad
+    /// bytes are refused and change nothing.
+    #[test]
+    fn restore_takes_the_model_back_and_refuses_bad_bytes() {
+        use crate::model::snapshot::SNAPSHOT_MAX;
+        let m = MountConfig::default().validate().unwrap();
+        let mut a: std::boxed::Box<Learner<2>> = std::boxed::Box::new(Learner::new(&m));
+        for k in 0..500 {
+            let t = 2.0 * k as f64;
+            a.learn(Frame {
+                gear_time_s: t,
+                interval_s: 2.0,
+                kind: FrameKind::Measured,
+                gear_error_arcsec: (t * 0.02).sin() as f32,
+                applied_arcsec: 0.0,
+                pulse_arcsec: 0.0,
+                filled: false,
+            });
+        }
+        let mut bytes = [0u8; SNAPSHOT_MAX];
+        let n = a.snapshot(&mut bytes).unwrap();
+        let mut b: std::boxed::Box<Learner<2>> = std::boxed::Box::new(Learner::new(&m));
+        let unknown = Phase::Unknown;
+        assert!(b.restore(&bytes[..n - 1], unknown).is_err());
+        bytes[100] ^= 0x40;
+        assert_eq!(
+            b.restore(&bytes[..n], unknown),
+            Err(SnapshotError::Checksum)
+        );
+        assert_eq!(b.guider().period_s(0), m.config().worm_period_s as f64);
+        bytes[100] ^= 0x40;
+        let known = Phase::Known {
+            gear_time_offset_s: 1000.0,
+        };
+        assert_eq!(b.restore(&bytes[..n], known), Ok(()));
+        let mut again = [0u8; SNAPSHOT_MAX];
+        let n2 = b.snapshot(&mut again).unwrap();
+        let (sa, sb) = (
+            Snapshot::parse(&bytes[..n], 2).unwrap(),
+            Snapshot::parse(&again[..n2], 2).unwrap(),
+        );
+        assert!(sa.cells().eq(sb.cells()));
+        assert_eq!((sa.stage(0), sa.stage(1)), (sb.stage(0), sb.stage(1)));
     }
 
     /// F5 through the learner: an observation the model refuses (beyond

@@ -7,6 +7,7 @@
 //! guide-sim bench [--csv] [--host-only]
 //! guide-sim st4 [--case ID] [--cases FILE] [--noise PX] [--csv]
 //!               [--aggressiveness A] [--exposure S] [--min-move PX] [--calibration K]
+//! guide-sim nights [--case ID] [--cases FILE] [--noise PX] [--park] [--csv]
 //! guide-sim mount [--pty PATH] [--tcp PORT] [--case ID] [--cases FILE] [--noise PX]
 //! ```
 //! `guide-sim <subcommand> --help` describes each; the arguments are
@@ -20,7 +21,7 @@ use host_tests::guide_algorithm::{GuideAlgorithm, Hysteresis};
 use host_tests::models::{self, Model};
 use host_tests::phd2_log::{self, GuideLog};
 use host_tests::replay::{self, ReplayResult};
-use host_tests::{mount_sim, st4_sim};
+use host_tests::{mount_sim, nights, st4_sim};
 use host_tests::{svg, table};
 use rayon::prelude::*;
 use std::io::Write;
@@ -83,6 +84,20 @@ enum Command {
     /// assumes (0.7, 2 s): how much a wrong guess costs.
     #[command(verbatim_doc_comment)]
     St4(St4Args),
+    /// The learned model across a power cycle: night 1, then night 2 cold or restored
+    ///
+    /// The firmware's closed loop as in `st4` (MKGP firmware): night 1 guides
+    /// 3 h from a cold model; its model is saved to bytes and restored into a
+    /// fresh learner (the step counter starts again); night 2 starts with the
+    /// gear at a phase drawn from the seed, cold, restored without an index
+    /// (phase unknown) and restored with the index or from park (phase
+    /// known). Pointing RMS (arcsec = px): settled = night 1's hours 1-3, the
+    /// others night 2's first 30 minutes. Noise 0 and 1 px (seeds 1-3, mean)
+    /// unless --noise PX picks one level; --case ID runs one case. Night 2
+    /// starts with the gear moved (the index gives the worm's phase) or,
+    /// with --park, where night 1 parked it (every phase carries over).
+    #[command(verbatim_doc_comment)]
+    Nights(NightsArgs),
     /// A virtual mount for LX200 clients: the firmware's loop on a pty, in real time
     ///
     /// The firmware's loop (ControlLoop, Learner<2>, the step generators, as in
@@ -146,18 +161,8 @@ struct BenchArgs {
 
 #[derive(Args)]
 struct St4Args {
-    /// Run only the case ID
-    #[arg(long, value_name = "ID")]
-    case: Option<String>,
-    /// The synthetic cases [default: host-tests/data/synthetic_cases.csv]
-    #[arg(long, value_name = "FILE")]
-    cases: Option<PathBuf>,
-    /// One noise level, px [default: 0 and 1]
-    #[arg(long, value_name = "PX", value_parser = noise_px, allow_negative_numbers = true)]
-    noise: Option<f64>,
-    /// Print the table as CSV
-    #[arg(long)]
-    csv: bool,
+    #[command(flatten)]
+    runs: RunsArgs,
     /// The guider's aggressiveness (the firmware assumes 0.7)
     #[arg(long, value_name = "A", value_parser = in_range(0.05, 1.0), default_value = "0.7")]
     aggressiveness: f64,
@@ -180,6 +185,33 @@ fn in_range(lo: f64, hi: f64) -> impl Fn(&str) -> Result<f64, String> + Clone {
     }
 }
 
+/// The cases and noise levels of a closed-loop table.
+#[derive(Args)]
+struct RunsArgs {
+    /// Run only the case ID
+    #[arg(long, value_name = "ID")]
+    case: Option<String>,
+    /// The synthetic cases [default: host-tests/data/synthetic_cases.csv]
+    #[arg(long, value_name = "FILE")]
+    cases: Option<PathBuf>,
+    /// One noise level, px [default: 0 and 1]
+    #[arg(long, value_name = "PX", value_parser = noise_px, allow_negative_numbers = true)]
+    noise: Option<f64>,
+    /// Print the table as CSV
+    #[arg(long)]
+    csv: bool,
+}
+
+#[derive(Args)]
+struct NightsArgs {
+    #[command(flatten)]
+    runs: RunsArgs,
+    /// Night 2 starts where night 1 parked the gear (default: moved to a
+    /// phase drawn from the seed)
+    #[arg(long)]
+    park: bool,
+}
+
 fn noise_px(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(x) if x.is_finite() && x >= 0.0 => Ok(x),
@@ -197,6 +229,7 @@ fn main() -> ExitCode {
         Command::Replay(args) => cmd_replay(args),
         Command::Bench(args) => cmd_bench(args),
         Command::St4(args) => cmd_st4(args),
+        Command::Nights(args) => cmd_nights(args),
         Command::Mount(args) => cmd_mount(args),
     }
 }
@@ -535,37 +568,81 @@ fn print_bench(rows: &[BenchRow]) {
     }
 }
 
-fn cmd_st4(
-    St4Args {
-        case,
-        cases,
-        noise,
-        csv,
-        aggressiveness,
-        exposure,
-        min_move,
-        calibration,
-    }: St4Args,
-) -> ExitCode {
-    let Some((path, mut cases)) = load_cases(cases) else {
-        return ExitCode::FAILURE;
-    };
-    if let Some(id) = case {
-        cases.retain(|c| c.name == id);
+/// The cases and noise levels `st4` and `nights` run: all cases or `--case`,
+/// noise 0 and 1 px or `--noise`.
+fn closed_loop_runs(args: &RunsArgs) -> Option<(Vec<cases::Case>, Vec<f64>)> {
+    let (path, mut cases) = load_cases(args.cases.clone())?;
+    if let Some(id) = &args.case {
+        cases.retain(|c| &c.name == id);
         if cases.is_empty() {
             eprintln!("guide-sim: {}: no case {id}", path.display());
-            return ExitCode::FAILURE;
+            return None;
         }
     }
-    let levels = match noise {
+    let levels = match args.noise {
         Some(x) => vec![x],
         None => vec![0.0, 1.0],
     };
+    Some((cases, levels))
+}
+
+fn cmd_nights(args: NightsArgs) -> ExitCode {
+    let Some((cases, levels)) = closed_loop_runs(&args.runs) else {
+        return ExitCode::FAILURE;
+    };
+    let start = if args.park {
+        nights::Night2Start::Parked
+    } else {
+        nights::Night2Start::Moved
+    };
+    let rows = nights::table(&cases, &levels, start);
+    if args.runs.csv {
+        println!("{}", nights::CSV_HEADER);
+        for r in &rows {
+            println!("{}", nights::csv_line(r));
+        }
+        return ExitCode::SUCCESS;
+    }
+    println!(
+        "Nights: pointing RMS (arcsec = px); settled = night 1 hours 1-3, the others night 2's first 30 min; noisy rows: mean of seeds 1-3"
+    );
+    println!(
+        "{:<6} {:>8} {:>8} {:>6} {:>9} {:>15} {:>14} {:>16}",
+        "case",
+        "noise_px",
+        "settled",
+        "cold",
+        "restored",
+        "restored_index",
+        "restored/cold",
+        "index/settled"
+    );
+    for r in &rows {
+        println!(
+            "{:<6} {:>8} {:>8.3} {:>6.3} {:>9.3} {:>15.3} {:>14.3} {:>16.3}",
+            r.case,
+            r.noise_px,
+            r.settled,
+            r.cold_first30,
+            r.restored_first30,
+            r.restored_index_first30,
+            r.restored_first30 / r.cold_first30,
+            r.restored_index_first30 / r.settled
+        );
+    }
+    ExitCode::SUCCESS
+}
+
+fn cmd_st4(args: St4Args) -> ExitCode {
+    let Some((cases, levels)) = closed_loop_runs(&args.runs) else {
+        return ExitCode::FAILURE;
+    };
+    let csv = args.runs.csv;
     let guider = st4_sim::GuiderSettings {
-        aggressiveness,
-        exposure_s: exposure,
-        min_move,
-        calibration,
+        aggressiveness: args.aggressiveness,
+        exposure_s: args.exposure,
+        min_move: args.min_move,
+        calibration: args.calibration,
     };
     let rows = st4_sim::table_with(&cases, &levels, guider);
     if csv {

@@ -165,6 +165,86 @@ impl<S: Scalar> Grid<S> {
         Push::Accepted { new_cells }
     }
 
+    /// Refill with saved `cells` (gear error and variance, oldest first, at
+    /// most [`GRID_CELLS`]): cell `i` is centred at `5 i - 2.5` s from the
+    /// origin, and the open cell starts where the last one ends, from the
+    /// last cell's gear error and `anchor_variance` (a variance that makes
+    /// the cells bridging a gap to the next sample count for little).
+    pub fn restore(&mut self, cells: impl Iterator<Item = (S, S)>, anchor_variance: f64) {
+        self.clear();
+        for (gear, variance) in cells.take(GRID_CELLS) {
+            self.emit(gear.to_f64(), variance.to_f64());
+            self.anchor_gear = gear.to_f64();
+        }
+        if self.len == 0 {
+            return;
+        }
+        self.started = true;
+        self.cell_end = CELL_S * self.len as f64;
+        self.last_time = self.cell_end - CELL_S;
+        self.anchor_variance = anchor_variance;
+    }
+
+    /// Where the open cell ends, relative to the origin.
+    pub fn open_cell_end(&self) -> f64 {
+        self.cell_end
+    }
+
+    /// Add `by` to the gear error of the held cells `cells` (0 = oldest; a
+    /// change of level), and to the open cell's if they reach the newest.
+    pub fn shift_gear(&mut self, cells: core::ops::Range<usize>, by: f64) {
+        let by_s = S::from_f64(by);
+        let end = cells.end.min(self.len);
+        for i in cells.start..end {
+            let k = (self.head + i) % GRID_CELLS;
+            self.gear[k] += by_s;
+        }
+        if end == self.len {
+            self.anchor_gear += by;
+            self.gear_sum += by * (self.last_time - (self.cell_end - CELL_S));
+        }
+    }
+
+    /// Insert `count` cells without data (gear interpolated between the
+    /// neighbours, `variance`) before held cell `at` (0 = oldest): the cells
+    /// before it move back in time by `count` cells, the newer ones keep
+    /// their times. The oldest cells are dropped if the ring overflows.
+    pub fn insert_gap(&mut self, at: usize, count: usize, variance: f64) {
+        let at = at.min(self.len);
+        let drop = (self.len + count).saturating_sub(GRID_CELLS).min(at);
+        self.head = (self.head + drop) % GRID_CELLS;
+        self.len -= drop;
+        let at = at - drop;
+        let count = count.min(GRID_CELLS - self.len);
+        let gear_at = |g: &Self, i: usize| g.gear[(g.head + i) % GRID_CELLS].to_f64();
+        let after = if at < self.len {
+            gear_at(self, at)
+        } else {
+            self.anchor_gear
+        };
+        let before = if at > 0 { gear_at(self, at - 1) } else { after };
+        for i in (at..self.len).rev() {
+            let (from, to) = (
+                (self.head + i) % GRID_CELLS,
+                (self.head + i + count) % GRID_CELLS,
+            );
+            self.gear[to] = self.gear[from];
+            self.variance[to] = self.variance[from];
+        }
+        for j in 0..count {
+            let k = (self.head + at + j) % GRID_CELLS;
+            let p = (j + 1) as f64 / (count + 1) as f64;
+            self.gear[k] = S::from_f64(before + p * (after - before));
+            self.variance[k] = S::from_f64(variance);
+        }
+        self.len += count;
+        self.emitted += count as u64;
+        let shift = CELL_S * count as f64;
+        self.origin -= shift;
+        self.cell_end += shift;
+        self.last_time += shift;
+    }
+
     fn emit(&mut self, gear: f64, variance: f64) {
         let k = (self.head + self.len) % GRID_CELLS;
         self.gear[k] = S::from_f64(gear);
@@ -228,6 +308,30 @@ mod tests {
         let c = g.cell_time(last);
         assert!((g.cell(last).0 - c).abs() < 2.0, "{} {}", g.cell(last).0, c);
         assert_eq!(g.cell_time(0), c - 5.0 * (GRID_CELLS - 1) as f64);
+    }
+
+    #[test]
+    fn a_gap_moves_the_older_cells_back_and_keeps_the_newer() {
+        let mut g: Grid<f64> = Grid::new();
+        let mut t = 0.0;
+        while t < 1000.0 {
+            g.push(t, t, 1.0);
+            t += 2.0;
+        }
+        let (len, newest) = (g.len(), g.cell_time(g.len() - 1) + g.origin().unwrap());
+        let old_time = g.cell_time(10) + g.origin().unwrap();
+        g.insert_gap(100, 7, 1e4);
+        assert_eq!(g.len(), len + 7);
+        assert_eq!(g.cell_time(g.len() - 1) + g.origin().unwrap(), newest);
+        assert_eq!(g.cell_time(10) + g.origin().unwrap(), old_time - 35.0);
+        // The gap: no data, the gear error interpolated across it.
+        for i in 100..107 {
+            assert_eq!(g.cell(i).1, 1e4);
+            assert!(g.cell(99).0 < g.cell(i).0 && g.cell(i).0 < g.cell(107).0);
+        }
+        assert_eq!(g.cell(107).1, 1.0);
+        // The next sample continues where the grid was.
+        assert_eq!(g.push(t, t, 1.0), Push::Accepted { new_cells: 1 });
     }
 
     #[test]

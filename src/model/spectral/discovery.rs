@@ -165,6 +165,27 @@ impl<const N: usize> Discovery<N> {
         self.stages.get(stage).map_or(0.0, |s| s.ratio)
     }
 
+    /// What a snapshot keeps of stage `s`: whether it was found, its
+    /// smoothed amplitude ratio and the frames since it was found.
+    pub fn saved(&self, s: usize) -> (bool, f64, u32) {
+        self.stages
+            .get(s)
+            .map_or((false, 0.0, 0), |st| (st.found, st.ratio, st.frames_found))
+    }
+
+    /// Take stage `s` back from a snapshot; its peak is looked for again in
+    /// the next spectrum.
+    pub fn restore(&mut self, s: usize, found: bool, ratio: f64, frames_found: u32) {
+        if let Some(st) = self.stages.get_mut(s) {
+            *st = StageSearch {
+                found,
+                ratio,
+                frames_found,
+                ..StageSearch::default()
+            };
+        }
+    }
+
     /// Read a new spectrum: find or follow every stage's peak.
     /// `worm_power` is the power of the worm's peak, `span_s` the data span.
     pub fn scan<S: Scalar>(

@@ -5,11 +5,13 @@
 //! nowhere. The linker drops unreferenced code, so the build links only if
 //! no panic call survives optimisation in anything this binary runs:
 //! `Guider<f32, 2>`'s `frame`, `dark_frame` and `dithered` (the PC-guider
-//! entry points), the mount's `MountConfig::validate`, `Learner::new`
-//! and `Learner::learn` (which runs `Guider::observe`), and the command
-//! port as the guiding task runs it (`Interpreter::feed` on a `PortMount`,
-//! `ControlLoop::wake`, a telemetry line), on inputs the compiler cannot
-//! see through (`black_box`): garbage on the port cannot panic. A link error
+//! entry points), the mount's `MountConfig::validate`, `Learner::new`,
+//! `Learner::learn` (which runs `Guider::observe`), `Learner::snapshot`
+//! and `Learner::restore` (and the first frames after it), and the
+//! command port as the guiding task runs it (`Interpreter::feed` on a
+//! `PortMount`, `ControlLoop::wake`, a telemetry line), on inputs the
+//! compiler cannot see through (`black_box`): garbage on the port cannot
+//! panic. A link error
 //! naming `model_code_may_panic` means a panic path is back; the firmware's
 //! own count (`panic_sites` in test.sh) shows where.
 //!
@@ -31,6 +33,7 @@ use mkgp_mount::control_loop::port_mount::{LearnedFrame, PortMount, PortState};
 use mkgp_mount::control_loop::st4_feed::{EdgeQueue, EdgeSource, RawEdge};
 use mkgp_mount::control_loop::ControlLoop;
 use mkgp_mount::model::guider::{Guider, GuiderConfig};
+use mkgp_mount::model::snapshot::{Phase, SNAPSHOT_MAX};
 use mkgp_mount::mount::config::{Mount, MountConfig};
 use mkgp_mount::mount::frame::{FeedForward, Frame, FrameKind};
 use mkgp_mount::mount::learner::Learner;
@@ -48,6 +51,8 @@ extern "C" {
 const DT: f32 = 2.0;
 /// Frames to run: 1,000 frames of 2 s.
 const FRAMES: u32 = 1000;
+/// Frames after each restore: past half the default worm period.
+const RESTORED_FRAMES: u32 = 150;
 
 /// A gear error the compiler cannot fold: a triangle wave of 288 s period
 /// and 5 px amplitude (no libm: this binary links nothing it does not test).
@@ -95,6 +100,40 @@ fn main() -> ! {
             filled: false,
         };
         sum += learner.learn(black_box(frame)).rate_arcsec_per_s;
+    }
+    // A power cycle: the model saved, and restored into a learner (the one
+    // above again: a second model would not fit the stack) with the phase
+    // known, with the worm's and unknown, and the frames that place its
+    // data (the phase search after half a worm period).
+    let mut bytes = [0u8; SNAPSHOT_MAX];
+    let n = learner.snapshot(black_box(&mut bytes)).unwrap_or(0);
+    let saved = black_box(bytes.get(..n).unwrap_or(&[]));
+    let phases = [
+        Phase::Known {
+            gear_time_offset_s: 1234.0,
+        },
+        Phase::Worm {
+            gear_time_offset_s: 1234.0,
+        },
+        Phase::Unknown,
+    ];
+    for phase in phases {
+        if learner.restore(saved, black_box(phase)).is_err() {
+            exit(false)
+        }
+        for k in 0..RESTORED_FRAMES {
+            let t = black_box(k as f32 * DT);
+            let frame = Frame {
+                gear_time_s: t as f64,
+                interval_s: DT,
+                kind: FrameKind::Measured,
+                gear_error_arcsec: gear_error(t + 1234.0),
+                applied_arcsec: 0.0,
+                pulse_arcsec: black_box(0.1),
+                filled: false,
+            };
+            sum += learner.learn(black_box(frame)).rate_arcsec_per_s;
+        }
     }
     black_box((applied, sum));
     let replies = command_port(&mount, &learner);

@@ -1,0 +1,192 @@
+//! `guide-sim nights`: the learned model across a power cycle (issue 9,
+//! section 5), through the firmware's loop (`st4_sim::Rig`, MKGP firmware).
+//!
+//! - **Night 1.** 3 h of guiding from a cold model; `settled` is the
+//!   pointing RMS over its hours 1-3.
+//! - **Power cycle.** The learner's model is saved with
+//!   `Learner::snapshot`, the bytes go through [`power_cycle`] (the store's
+//!   boundary) and are restored with `Learner::restore` into the fresh
+//!   learner of a new rig: the step counter, and with it gear time, starts
+//!   again at 0.
+//! - **Night 2.** The gear stands at a phase drawn from the seed (uniform
+//!   over a day of gear time; the same for the three variants;
+//!   [`Night2Start::Moved`]), or where night 1 left it
+//!   ([`Night2Start::Parked`], `--park`): its error at the new gear time `t`
+//!   is the case's at `t + phase`. Three variants, each scored over its
+//!   first 30 minutes: cold (a new model), restored without an index
+//!   (`Phase::Unknown`) and restored with the index, or from park
+//!   (`Phase::Known`: with the index the worm's phase only,
+//!   [`index_offset`]; from park the exact offset).
+//! - The guider locks where the star is at the start of each night (PHD2's
+//!   lock), so that no night starts with a pull to an old lock position.
+//!   Noise-free rows run seed 1; noisy rows are the mean of seeds 1-3
+//!   (`st4_sim::SEEDS`), night 2 with its own noise.
+
+use crate::cases::Case;
+use crate::st4_sim::{Firmware, Rig, SEEDS};
+use mkgp_mount::model::snapshot::{Phase, SNAPSHOT_MAX};
+use mkgp_mount::testing::SplitMix64;
+use rayon::prelude::*;
+
+/// Night 1, s.
+pub const NIGHT_1_S: f64 = 10_800.0;
+/// `settled` covers night 1 from here, s.
+pub const SETTLED_FROM_S: f64 = 3_600.0;
+/// The scored start of night 2, s.
+pub const FIRST_S: f64 = 1_800.0;
+/// Night 2's gear phase is drawn from this span, s of gear time.
+pub const PHASE_SPAN_S: f64 = 86_400.0;
+/// Added to the seed of night 2's noise (another night, other noise).
+const NIGHT_2_NOISE_SEED: u64 = 1000;
+
+pub const CSV_HEADER: &str =
+    "case,noise_px,settled,cold_first30,restored_first30,restored_index_first30";
+
+/// One row: pointing RMS, arcsec.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Row {
+    pub case: String,
+    pub noise_px: f64,
+    pub settled: f64,
+    pub cold_first30: f64,
+    pub restored_first30: f64,
+    pub restored_index_first30: f64,
+}
+
+/// The power cycle of the saved model's bytes: what comes back at boot.
+/// The flash store goes here (`src/persist/`); until then the bytes come
+/// back as they were.
+pub fn power_cycle(saved: &[u8]) -> Vec<u8> {
+    saved.to_vec()
+}
+
+/// Where the gear stands when night 2 starts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Night2Start {
+    /// Moved while off, to a phase drawn from the seed
+    /// ([`night_2_phase`]); the index sensor then gives the worm's phase,
+    /// not the other stages' ([`index_offset`]).
+    Moved,
+    /// Parked at the end of night 1 with its RA step count saved, and not
+    /// moved: every stage's phase carries over.
+    Parked,
+}
+
+/// What a worm-index sensor tells the firmware at night 2 (gear at
+/// `phase`, night 1 ended at gear time `end_1`): the worm's phase, i.e.
+/// the gear-time offset modulo the worm's true period (the case's first
+/// sinusoid), given as the offset that puts night 2 within one worm period
+/// after night 1's end.
+pub fn index_offset(case: &Case, end_1: f64, phase: f64) -> f64 {
+    let worm = case.sinusoids.first().map_or(f64::INFINITY, |s| s.period_s);
+    end_1 + (phase - end_1).rem_euclid(worm)
+}
+
+/// Night 2's gear phase for a seed, s.
+pub fn night_2_phase(seed: u64) -> f64 {
+    SplitMix64::new(seed).uniform() * PHASE_SPAN_S
+}
+
+/// A night of `length_s` on the MKGP firmware, scored from `score_from_s`,
+/// the gear at `gear_phase_s`, the model restored from `restore` if given.
+fn night(
+    case: &Case,
+    noise_px: f64,
+    seed: u64,
+    gear_phase_s: f64,
+    restore: Option<(&[u8], Phase)>,
+    length_s: f64,
+    score_from_s: f64,
+) -> Rig {
+    let mut rig = Rig::new(case, Firmware::Mkgp, noise_px, seed);
+    rig.gear_phase_s = gear_phase_s;
+    rig.lock_arcsec = rig.pointing_arcsec();
+    rig.score_window_s = (score_from_s, f64::INFINITY);
+    if let Some((bytes, phase)) = restore {
+        let learner = rig.mkgp_learner().expect("the MKGP firmware has a learner");
+        learner
+            .restore(bytes, phase)
+            .unwrap_or_else(|e| panic!("restore: {e:?}"));
+    }
+    rig.run_until((length_s * 1e6) as u64);
+    rig
+}
+
+/// The four figures for one seed: settled, cold, restored without and with
+/// the phase.
+fn one_seed(case: &Case, noise_px: f64, seed: u64, start: Night2Start) -> [f64; 4] {
+    let mut first = night(case, noise_px, seed, 0.0, None, NIGHT_1_S, SETTLED_FROM_S);
+    let mut saved = [0u8; SNAPSHOT_MAX];
+    let learner = first
+        .mkgp_learner()
+        .expect("the MKGP firmware has a learner");
+    let n = learner
+        .snapshot(&mut saved)
+        .unwrap_or_else(|e| panic!("snapshot: {e:?}"));
+    let bytes = power_cycle(&saved[..n]);
+    // Night 1's gear time at its end: where a park leaves the gear.
+    let end_1 = first.ra_steps() as f64 / first.mount.sidereal_ra_steps_per_s_f64();
+    let (phase, known_offset) = match start {
+        Night2Start::Moved => (
+            night_2_phase(seed),
+            index_offset(case, end_1, night_2_phase(seed)),
+        ),
+        Night2Start::Parked => (end_1, end_1),
+    };
+    let seed_2 = seed + NIGHT_2_NOISE_SEED;
+    let second = |restore: Option<Phase>| {
+        let restore = restore.map(|p| (bytes.as_slice(), p));
+        night(case, noise_px, seed_2, phase, restore, FIRST_S, 0.0).score()
+    };
+    let known = match start {
+        Night2Start::Moved => Phase::Worm {
+            gear_time_offset_s: known_offset,
+        },
+        Night2Start::Parked => Phase::Known {
+            gear_time_offset_s: known_offset,
+        },
+    };
+    let (cold, (unknown, index)) = rayon::join(
+        || second(None),
+        || rayon::join(|| second(Some(Phase::Unknown)), || second(Some(known))),
+    );
+    [first.score(), cold, unknown, index]
+}
+
+/// One row: noise-free runs seed 1, noisy rows the mean over [`SEEDS`].
+pub fn row(case: &Case, noise_px: f64, start: Night2Start) -> Row {
+    let seeds: &[u64] = if noise_px > 0.0 { &SEEDS } else { &SEEDS[..1] };
+    let runs: Vec<[f64; 4]> = seeds
+        .par_iter()
+        .map(|&seed| one_seed(case, noise_px, seed, start))
+        .collect();
+    let mean = |k: usize| runs.iter().map(|r| r[k]).sum::<f64>() / runs.len() as f64;
+    Row {
+        case: case.name.clone(),
+        noise_px,
+        settled: mean(0),
+        cold_first30: mean(1),
+        restored_first30: mean(2),
+        restored_index_first30: mean(3),
+    }
+}
+
+/// The table for `cases` and noise levels, one row per case and level in
+/// that order; the rows run in parallel.
+pub fn table(cases: &[Case], noise_levels: &[f64], start: Night2Start) -> Vec<Row> {
+    let rows: Vec<(&Case, f64)> = cases
+        .iter()
+        .flat_map(|case| noise_levels.iter().map(move |&noise| (case, noise)))
+        .collect();
+    rows.into_par_iter()
+        .map(|(case, noise)| row(case, noise, start))
+        .collect()
+}
+
+/// A row as CSV, in [`CSV_HEADER`]'s order.
+pub fn csv_line(r: &Row) -> String {
+    format!(
+        "{},{},{:.3},{:.3},{:.3},{:.3}",
+        r.case, r.noise_px, r.settled, r.cold_first30, r.restored_first30, r.restored_index_first30
+    )
+}

@@ -1,0 +1,512 @@
+//! The guider's learned state across a power cycle: written as a snapshot
+//! (`crate::model::snapshot` has the format) and restored from one, with
+//! the gear phase known or not (docs/model.md, "Snapshot and restore").
+//!
+//! A restored grid cannot simply continue on the new clock: the gap between
+//! the saved data and the first new frame is arbitrary (hours, or negative
+//! after a slew back), and the grid is a contiguous ring of 2.8 h. So with
+//! the phase known, the saved cells are placed shortly before the first
+//! new frame where the stages' phases come out right (exactly, if the
+//! offset puts the frame there) or as close as they can, the gap left as
+//! cells without data (as a cloud leaves them); and their level is moved
+//! to meet the first observation, since the gear error the mount
+//! reconstructs starts again from 0 each night. With the phase unknown (or
+//! only the worm's), the new data is matched against the saved cells once
+//! half a worm period of it is in, and the saved cells move to the phase
+//! found (the phase search).
+
+use super::{Guider, DARK_VARIANCE};
+use crate::model::gp::grid::{CELL_S, GRID_CELLS};
+use crate::model::gp::kernel::Kernel;
+use crate::model::numeric::scalar::Scalar;
+use crate::model::snapshot::{encode, Phase, SavedStage, Snapshot, SnapshotError, SNAPSHOT_CELLS};
+use crate::model::spectral::period::PeriodTracker;
+
+/// Whole worm periods tried as the gap between the saved data and the
+/// first new frame. Beyond 8 (an hour at 432 s) a stage's envelope (20
+/// periods) and the long SE (700 s) have forgotten the saved data anyway,
+/// and the 2.8 h ring holds the 83 min saved plus the gap.
+const PLACEMENT_PERIODS: u32 = 8;
+/// Step of the placement's fine candidates, s, and their most (a 1.2 h
+/// range at 1 s).
+const PLACEMENT_STEP_S: f64 = 1.0;
+const PLACEMENT_MAX_STEPS: f64 = 4096.0;
+/// Worm periods of new data the phase search waits for (measured against
+/// 0.3 and 1: docs/model.md, "Snapshot and restore").
+const PHASE_SEARCH_PERIODS: f64 = 0.5;
+/// Phase error per second of gap between the saved data and the first new
+/// frame, s/s: the relative error of a tracked period (C5 after 8,000 s in
+/// `f32`: 432.23 s for 432 s, 5e-4).
+const GAP_PHASE_DRIFT: f64 = 5e-4;
+/// Cells of at least this variance count as unmeasured (frames without a
+/// measurement have 10^4).
+const LEVEL_MAX_VARIANCE: f64 = 100.0;
+/// Measured cells whose level is averaged (a minute of data).
+const LEVEL_CELLS: u32 = 12;
+
+/// A restored grid waiting for the first frame.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Resume {
+    /// The new clock's reading at the restored grid's time 0 (with the
+    /// phase unknown, as if the offset were 0).
+    grid_zero_s: f64,
+    place: Place,
+}
+
+/// How the first frame places the restored grid.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Place {
+    /// Where the offset says, the stages' phases matched (`Phase::Known`).
+    AllStages,
+    /// At the worm's phase (`Phase::Worm`).
+    Worm,
+    /// Right after the saved data, for now: the phase is searched once
+    /// there is data to match (`Phase::Unknown`, [`PhaseSearch`]).
+    Search,
+}
+
+/// The new data starts at this held cell; the phase search runs once
+/// [`PHASE_SEARCH_PERIODS`] of it are in.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct PhaseSearch {
+    new_from: usize,
+    /// The restored data is not placed at any known phase: no prediction
+    /// until the search has placed it.
+    blocks: bool,
+}
+
+impl<S: Scalar, const N: usize> Guider<S, N> {
+    /// Write the learned state (see [`crate::model::snapshot`]) into `out`,
+    /// at most [`SNAPSHOT_MAX`](crate::model::snapshot::SNAPSHOT_MAX)
+    /// bytes for two stages; returns the length written. Not a per-frame
+    /// call: it reads the newest [`SNAPSHOT_CELLS`] cells. Refused
+    /// ([`SnapshotError::Placing`]) while a phase search is pending.
+    pub fn snapshot(&self, out: &mut [u8]) -> Result<usize, SnapshotError> {
+        if self.phase_search.is_some() {
+            return Err(SnapshotError::Placing);
+        }
+        let stages: [SavedStage; N] = core::array::from_fn(|s| {
+            let (found, ratio, frames_found) = self.discovery.saved(s);
+            SavedStage {
+                period_s: self.trackers[s].period_s,
+                disagreement: self.trackers[s].disagreement,
+                gate: self.gates[s],
+                ratio,
+                frames_found,
+                found,
+            }
+        });
+        let len = self.grid.len();
+        let skip = len.saturating_sub(SNAPSHOT_CELLS);
+        let cells = (skip..len).map(|i| {
+            let (gear, variance) = self.grid.cell(i);
+            (gear.to_f64() as f32, variance.to_f64() as f32)
+        });
+        // The saved grid's time 0 is where its first cell starts.
+        let zero = self.grid.cell_time(skip) + 0.5 * CELL_S;
+        encode(&stages, self.clock_at_grid_time(zero), cells, out)
+    }
+
+    /// Take the learned state back from `snapshot` (checked by
+    /// [`Snapshot::parse`]): the periods, stages and gates always; the data
+    /// too if `phase` is known (it is placed at the first frame). The
+    /// fault counters stay. A snapshot of another stage count is refused
+    /// and nothing changes.
+    pub fn restore(&mut self, snapshot: &Snapshot<'_>, phase: Phase) -> Result<(), SnapshotError> {
+        if snapshot.stages() != N {
+            return Err(SnapshotError::Stages {
+                saved: u16::try_from(snapshot.stages()).unwrap_or(u16::MAX),
+                model: u16::try_from(N).unwrap_or(u16::MAX),
+            });
+        }
+        self.reset();
+        self.held_time = None;
+        for (s, ((tracker, gate), saved)) in self
+            .trackers
+            .iter_mut()
+            .zip(&mut self.gates)
+            .zip((0..N).filter_map(|s| snapshot.stage(s)))
+            .enumerate()
+        {
+            *tracker = PeriodTracker {
+                period_s: saved.period_s,
+                disagreement: saved.disagreement,
+            };
+            *gate = saved.gate;
+            self.discovery
+                .restore(s, saved.found, saved.ratio, saved.frames_found);
+        }
+        let (offset, place) = match phase {
+            Phase::Known { gear_time_offset_s } => (gear_time_offset_s, Place::AllStages),
+            Phase::Worm { gear_time_offset_s } => (gear_time_offset_s, Place::Worm),
+            Phase::Unknown => (0.0, Place::Search),
+        };
+        // The saved clock = the new clock + the offset.
+        let grid_zero_s = snapshot.origin_s() - offset;
+        if grid_zero_s.is_finite() && snapshot.cell_count() > 0 {
+            let cells = snapshot
+                .cells()
+                .map(|(g, v)| (S::from_f64(g as f64), S::from_f64(v as f64)));
+            self.grid.restore(cells, DARK_VARIANCE);
+            self.resume = Some(Resume { grid_zero_s, place });
+        }
+        Ok(())
+    }
+
+    /// The caller's clock at a time of the grid.
+    fn clock_at_grid_time(&self, t: f64) -> f64 {
+        match self.resume {
+            Some(r) => r.grid_zero_s + t,
+            None => t + self.grid.origin().unwrap_or(0.0) + self.start_time - self.dither_offset,
+        }
+    }
+
+    /// At the first frame (clock `time_s`, gear error `gear` if measured):
+    /// place a restored grid before it and return the frame's gear time
+    /// (0 without a restored grid).
+    pub(super) fn resume_restored(&mut self, time_s: f64, gear: Option<f64>) -> f64 {
+        let Some(resume) = self.resume.take() else {
+            return 0.0;
+        };
+        if resume.place == Place::Search {
+            self.phase_search = Some(PhaseSearch {
+                new_from: self.grid.len(),
+                blocks: true,
+            });
+            return self.grid.open_cell_end();
+        }
+        let at = self.placement(time_s - resume.grid_zero_s, resume.place == Place::Worm);
+        let periods = self.trackers.map(|t| t.period_s);
+        self.kernel = Kernel::new(&periods, &self.gates);
+        if let Some(level) = gear.zip(self.mean_from_data(at)).map(|(g, m)| g - m) {
+            if level.is_finite() {
+                self.grid.shift_gear(0..self.grid.len(), level);
+            }
+        }
+        if resume.place == Place::Worm {
+            // The other stages' phases are found by the search; the
+            // first new data lands in the cell after those the frame at
+            // `at` completes.
+            let completed = libm::floor((at - self.grid.open_cell_end()) / CELL_S) + 1.0;
+            self.phase_search = Some(PhaseSearch {
+                new_from: self.grid.len() + completed.max(0.0) as usize,
+                blocks: false,
+            });
+        }
+        at
+    }
+
+    /// Whether the model must wait for the phase search (the restored data
+    /// is not placed yet: no prediction); runs the search when a worm
+    /// period of new data is in. Called before each fit.
+    pub(super) fn phase_search_pending(&mut self) -> bool {
+        let Some(search) = self.phase_search else {
+            return false;
+        };
+        let worm_cells = libm::ceil(self.trackers[0].period_s / CELL_S);
+        let new_cells = self.grid.len().saturating_sub(search.new_from);
+        if (new_cells as f64) < PHASE_SEARCH_PERIODS * worm_cells && self.grid.len() < GRID_CELLS {
+            return search.blocks;
+        }
+        self.phase_search = None;
+        self.search_phase(search.new_from, !search.blocks);
+        false
+    }
+
+    /// Match the new data (held cells `saved..`) against every stretch of
+    /// the saved data (cells `..saved`): the shift whose difference is
+    /// flattest (least squares of a level and a slope, measured cells only)
+    /// puts each new cell at the phase of a saved one. The saved data then
+    /// moves back by the gap that makes those equal phases lie a whole
+    /// number of every stage's periods apart (as [`placement`](Self::placement)
+    /// weighs them), and to the new data's level.
+    fn search_phase(&mut self, saved: usize, worm_known: bool) {
+        let new = self.grid.len().saturating_sub(saved);
+        if new < 2 || saved < new {
+            return;
+        }
+        let grid = &self.grid;
+        let measured = |i: usize| {
+            let (g, v) = grid.cell(i);
+            (v.to_f64() < LEVEL_MAX_VARIANCE).then(|| g.to_f64())
+        };
+        let worm = self.trackers[0].period_s;
+        let mut best = (f64::INFINITY, 0, 0.0);
+        for shift in 0..=saved - new {
+            // With the worm's phase known (an index), only the shifts that
+            // keep it (within half a cell) are candidates.
+            let cycles = CELL_S * (saved - shift) as f64 / worm;
+            if worm_known && ((cycles - libm::round(cycles)) * worm).abs() > 0.5 * CELL_S {
+                continue;
+            }
+            let (mut sw, mut sj, mut sjj, mut sr, mut sjr, mut srr) =
+                (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+            for j in 0..new {
+                if let (Some(n), Some(s)) = (measured(saved + j), measured(shift + j)) {
+                    let (x, r) = (j as f64, n - s);
+                    sw += 1.0;
+                    sj += x;
+                    sjj += x * x;
+                    sr += r;
+                    sjr += x * r;
+                    srr += r * r;
+                }
+            }
+            let det = sw * sjj - sj * sj;
+            if !(sw >= 0.5 * new as f64 && det > 0.0) {
+                continue;
+            }
+            let slope = (sw * sjr - sj * sr) / det;
+            let level = (sr - slope * sj) / sw;
+            let residual = (srr - level * sr - slope * sjr) / sw;
+            if residual < best.0 {
+                best = (residual, shift, level);
+            }
+        }
+        let (residual, shift, level) = best;
+        if !residual.is_finite() {
+            return;
+        }
+        // Equal phases now lie (saved - shift) cells apart.
+        let lag = CELL_S * (saved - shift) as f64;
+        let max_gap =
+            libm::ceil(f64::from(PLACEMENT_PERIODS) * worm / CELL_S).min(PLACEMENT_MAX_STEPS);
+        let mut gap = (f64::INFINITY, 0usize);
+        for g in 0..max_gap as usize {
+            let extra = CELL_S * g as f64;
+            let c = self.phase_cost(lag + extra, extra);
+            if c < gap.0 {
+                gap = (c, g);
+            }
+        }
+        self.grid.shift_gear(0..saved, level);
+        self.grid.insert_gap(saved, gap.1, DARK_VARIANCE);
+    }
+
+    /// How far off a placement is, s²: the stages' phases (weighted by
+    /// their gates; the worm's is 1) when equal phases lie `lag` s apart,
+    /// and the phase error the tracked periods gather over a gap of `gap`
+    /// s.
+    fn phase_cost(&self, lag: f64, gap: f64) -> f64 {
+        let stages: f64 = self
+            .trackers
+            .iter()
+            .zip(&self.gates)
+            .map(|(t, &gate)| {
+                let cycles = lag / t.period_s;
+                let off_s = (cycles - libm::round(cycles)) * t.period_s;
+                gate * off_s * off_s
+            })
+            .sum();
+        let drift_s = GAP_PHASE_DRIFT * gap;
+        stages + drift_s * drift_s
+    }
+
+    /// The model's mean at grid time `x` from the data held, fitted around
+    /// `x`: the newest [`LEVEL_CELLS`] measured cells, each plus the
+    /// predicted change from it to `x`, averaged (one cell's noise would
+    /// move the level). `None` if no cell was measured or the fit fails.
+    fn mean_from_data(&mut self, x: f64) -> Option<f64> {
+        self.gp
+            .infer(&self.grid, &self.kernel, x, &mut self.scratch)
+            .ok()?;
+        let (mut sum, mut n) = (0.0, 0u32);
+        for i in (0..self.grid.len()).rev() {
+            let (g, v) = self.grid.cell(i);
+            if v.to_f64() < LEVEL_MAX_VARIANCE {
+                let t = self.grid.cell_time(i);
+                sum += g.to_f64()
+                    + self
+                        .gp
+                        .predict_change(&self.grid, &self.kernel, t, x)
+                        .to_f64();
+                n += 1;
+                if n == LEVEL_CELLS {
+                    break;
+                }
+            }
+        }
+        (n > 0).then(|| sum / f64::from(n))
+    }
+
+    /// Where on the restored grid the first frame goes, given that the
+    /// saved clock puts it at grid time `x`: within [`PLACEMENT_PERIODS`]
+    /// worm periods after the saved data, where the stages' phases
+    /// (weighted by their gates; the worm's is 1) are least off and the gap,
+    /// over which the tracked periods' error adds up, is short: the cost is
+    /// the sum of squares of both in seconds. The candidates are `x` moved
+    /// by whole worm periods (`x` itself if it lies in the range: the model
+    /// then continues exactly) and a [`PLACEMENT_STEP_S`] grid over the
+    /// range, which can trade a little of the worm's phase for much of
+    /// another stage's.
+    fn placement(&self, x: f64, worm_only: bool) -> f64 {
+        let end = self.grid.open_cell_end();
+        let worm = self.trackers[0].period_s;
+        // `x` less whole worm periods, to [end, end + worm). (Not
+        // `libm::fmod`: its integer remainder brings a panic path.)
+        let first = x - libm::floor((x - end) / worm) * worm;
+        if !first.is_finite() {
+            return end;
+        }
+        if worm_only {
+            return first;
+        }
+        let cost = |y: f64| self.phase_cost(y - x, y - end);
+        let span = f64::from(PLACEMENT_PERIODS) * worm;
+        let steps = libm::ceil(span / PLACEMENT_STEP_S).min(PLACEMENT_MAX_STEPS) as u32;
+        let whole_periods = (0..PLACEMENT_PERIODS).map(|k| first + f64::from(k) * worm);
+        let grid = (0..steps).map(|j| end + f64::from(j) * PLACEMENT_STEP_S);
+        let mut best = (f64::INFINITY, first);
+        for y in whole_periods.chain(grid) {
+            let c = cost(y);
+            // Strictly better only: of equals the first (the exact worm
+            // phase, the shorter gap) stays.
+            if c < best.0 {
+                best = (c, y);
+            }
+        }
+        best.1
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::model::guider::{Guider, GuiderConfig};
+    use crate::model::snapshot::{Phase, Snapshot, SNAPSHOT_MAX};
+
+    const TAU: f64 = 2.0 * core::f64::consts::PI;
+
+    /// C5-like gear: the 432 s worm and a 155 s stage, with harmonics.
+    fn gear(t: f64) -> f64 {
+        9.0 * libm::sin(TAU * t / 432.0)
+            + 3.0 * libm::sin(TAU * t / 216.0)
+            + 4.5 * libm::sin(TAU * t / 155.0)
+            + 1.5 * libm::sin(TAU * t / 77.5)
+    }
+
+    /// Observes `gear(t + phase)` (plus `level`) from clock `from` to `to`
+    /// every 2 s; returns the RMS error of the feed-forward against the true
+    /// change over the frames from `score_from` on.
+    fn run(
+        g: &mut Guider<f32, 2>,
+        phase: f64,
+        level: f64,
+        from: f64,
+        to: f64,
+        score_from: f64,
+    ) -> f64 {
+        let (mut sq, mut n) = (0.0, 0);
+        let mut t = from;
+        while t < to {
+            let ff = g.observe(t, Some(gear(t + phase) + level), 0.0, 10.0, 2.0) as f64;
+            if t >= score_from {
+                let truth = gear(t + phase + 2.0) - gear(t + phase - 1.0);
+                sq += (ff - truth) * (ff - truth);
+                n += 1;
+            }
+            t += 2.0;
+        }
+        (sq / n.max(1) as f64).sqrt()
+    }
+
+    fn learned() -> std::boxed::Box<Guider<f32, 2>> {
+        let config = GuiderConfig {
+            prior_period_s: 432.0,
+            ..GuiderConfig::default()
+        };
+        let mut g = std::boxed::Box::new(Guider::new(config));
+        run(&mut g, 0.0, 0.0, 0.0, 8000.0, 0.0);
+        g
+    }
+
+    /// First 15 min of night 2 after a power cycle, RMS error of the
+    /// feed-forward: restored with the phase known, restored without, and
+    /// cold, on a clock that starts again at 0 with the gear at `phase`
+    /// (the saved model's gear time) and the level moved by 5.
+    fn night_2(g: &Guider<f32, 2>, phase: f64) -> (f64, f64, f64) {
+        let mut buf = [0u8; SNAPSHOT_MAX];
+        let n = g.snapshot(&mut buf).unwrap();
+        assert_eq!(n, SNAPSHOT_MAX);
+        let snapshot = Snapshot::parse(&buf[..n], 2).unwrap();
+        let fresh = || std::boxed::Box::new(Guider::<f32, 2>::new(*g.config()));
+        let mut known = fresh();
+        let offset = Phase::Known {
+            gear_time_offset_s: phase,
+        };
+        known.restore(&snapshot, offset).unwrap();
+        assert_eq!(known.period_s(0), g.period_s(0));
+        assert_eq!(known.gate(1), g.gate(1));
+        let mut unknown = fresh();
+        unknown.restore(&snapshot, Phase::Unknown).unwrap();
+        let mut cold = fresh();
+        let first = |m: &mut Guider<f32, 2>| run(m, phase, 5.0, 0.0, 900.0, 30.0);
+        let rms = (first(&mut known), first(&mut unknown), first(&mut cold));
+        assert_eq!(known.faults().inference_failures, 0);
+        rms
+    }
+
+    #[test]
+    fn a_restored_model_predicts_at_once_with_the_phase_known_and_learns_it_again_without() {
+        let mut g = learned();
+        assert!(g.gate(1) > 0.5, "stage not learned: {}", g.gate(1));
+        // The gear stopped where night 1 ended (a park): the model continues.
+        let (k, u, c) = night_2(&g, 8000.0);
+        // Far away (moved while off): placed by whole worm periods, the
+        // 155 s stage as close as the candidates allow.
+        let (far_k, far_u, far_c) = night_2(&g, 20_000.0);
+        let steady = run(&mut g, 0.0, 0.0, 8000.0, 8900.0, 8000.0);
+        std::println!(
+            "steady {steady}; park: known {k} unknown {u} cold {c}; far: {far_k} {far_u} {far_c}"
+        );
+        // Measured: steady 0.060; park 0.062 0.292 0.578; far 0.171 0.267
+        // 0.585 (without the phase search, unknown: 0.398 and 0.442).
+        assert!(k < 1.1 * steady, "{k} vs {steady}");
+        assert!(far_k < 0.5 * far_c, "{far_k} vs {far_c}");
+        assert!(
+            u < 0.55 * c && far_u < 0.55 * far_c,
+            "{u} {c} {far_u} {far_c}"
+        );
+    }
+
+    /// While the phase search is pending the grid holds the restored data
+    /// at no known phase: no snapshot; after it, one.
+    #[test]
+    fn no_snapshot_until_the_phase_is_found() {
+        use crate::model::snapshot::SnapshotError;
+        let g = learned();
+        let mut buf = [0u8; SNAPSHOT_MAX];
+        let n = g.snapshot(&mut buf).unwrap();
+        let mut r = std::boxed::Box::new(Guider::<f32, 2>::new(*g.config()));
+        r.restore(&Snapshot::parse(&buf[..n], 2).unwrap(), Phase::Unknown)
+            .unwrap();
+        let mut out = [0u8; SNAPSHOT_MAX];
+        run(&mut r, 777.0, 0.0, 0.0, 100.0, 0.0);
+        assert_eq!(r.snapshot(&mut out), Err(SnapshotError::Placing));
+        // Half a worm period (216 s) and a frame.
+        run(&mut r, 777.0, 0.0, 100.0, 240.0, 0.0);
+        assert_eq!(r.snapshot(&mut out), Ok(SNAPSHOT_MAX));
+    }
+
+    #[test]
+    fn a_snapshot_of_a_restored_model_not_yet_placed_is_the_same_model() {
+        let g = learned();
+        let mut a = [0u8; SNAPSHOT_MAX];
+        let n = g.snapshot(&mut a).unwrap();
+        let mut r = std::boxed::Box::new(Guider::<f32, 2>::new(*g.config()));
+        let phase = Phase::Known {
+            gear_time_offset_s: 100.0,
+        };
+        r.restore(&Snapshot::parse(&a[..n], 2).unwrap(), phase)
+            .unwrap();
+        let mut b = [0u8; SNAPSHOT_MAX];
+        assert_eq!(r.snapshot(&mut b).unwrap(), n);
+        let (sa, sb) = (
+            Snapshot::parse(&a[..n], 2).unwrap(),
+            Snapshot::parse(&b[..n], 2).unwrap(),
+        );
+        // The same cells and stages; the origin is on the new clock.
+        assert!(sa.cells().eq(sb.cells()));
+        assert_eq!(sa.stage(1), sb.stage(1));
+        assert_eq!(sb.origin_s(), sa.origin_s() - 100.0);
+    }
+}
