@@ -64,8 +64,10 @@ const DEC_DIR_FORWARD_HIGH: bool = true;
 const EXECUTOR_HIGH_PRIORITY: Priority = Priority::P2;
 /// NVIC priority of embassy's time driver (TIM5); `P0` is the step tick's.
 const TIME_DRIVER_PRIORITY: Priority = Priority::P1;
-/// Timeout of the independent watchdog, µs: ten liveness checks.
-const WATCHDOG_TIMEOUT_US: u32 = 1_000_000;
+/// Timeout of the independent watchdog, µs: above the longest flash
+/// sector erase (2 s, the datasheet's maximum), during which every flash
+/// read, the guiding task's that feeds the watchdog included, stalls.
+const WATCHDOG_TIMEOUT_US: u32 = 4_000_000;
 /// Where RAM starts (memory.x); flip-link puts the bottom of the stack here.
 const RAM_ORIGIN: u32 = 0x2000_0000;
 /// Periodic stages of the gear-error model: the worm and one more (MKGP).
@@ -98,11 +100,15 @@ async fn main(spawner: Spawner) {
     let ra = StepAxis::new(board.ra, RA_DIR_FORWARD_HIGH);
     let dec = StepAxis::new(board.dec, DEC_DIR_FORWARD_HIGH);
 
-    // The configuration: the stored one, or the defaults.
+    // The configuration (the stored one, or the defaults) and the park the
+    // mount was switched off in, if any.
     let mut store = firmware::storage::open(p.FLASH);
-    let config = match store.as_deref_mut() {
-        Some(store) => firmware::storage::boot_config(store).await,
-        None => MountConfig::default(),
+    let (config, park) = match store.as_deref_mut() {
+        Some(store) => (
+            firmware::storage::boot_config(store).await,
+            firmware::storage::boot_park(store).await,
+        ),
+        None => (MountConfig::default(), None),
     };
     let running = start(
         spawner,
@@ -114,8 +120,11 @@ async fn main(spawner: Spawner) {
             st4_pins: board.st4,
         },
         config,
-        store,
-        last_reset.cause,
+        Boot {
+            store,
+            park,
+            reset_cause: last_reset.cause,
+        },
     );
     // The ports answer even with the motors disabled: they tell why.
     if let Err(which) = firmware::port_io::start(spawner, board.ports) {
@@ -151,18 +160,25 @@ struct Hardware {
     st4_pins: hal::board::St4Pins,
 }
 
-/// Validates the configuration, builds the model, starts the step tick,
-/// enables the drivers and starts the guiding task (high priority) and the
-/// learning task (on `spawner`, thread mode, with the store if there is
-/// one), and the watchdog. On a refused configuration: logs why and
-/// returns with the drivers disabled and nothing started.
-fn start(
-    spawner: Spawner,
-    hw: Hardware,
-    config: MountConfig,
+/// What the boot found: the store, the park, why the board started.
+struct Boot {
     store: Option<&'static mut firmware::storage::FirmwareStore>,
+    park: Option<mkgp_mount::persist::Park>,
     reset_cause: mkgp_mount::safety::reset_cause::ResetCause,
-) -> Result<(), ()> {
+}
+
+/// Validates the configuration, builds the model, starts the step tick
+/// (from the parked counts, if the mount was parked), enables the drivers
+/// and starts the guiding task (high priority) and the learning task (on
+/// `spawner`, thread mode, with the store if there is one), and the
+/// watchdog. On a refused configuration: logs why and returns with the
+/// drivers disabled and nothing started.
+fn start(spawner: Spawner, hw: Hardware, config: MountConfig, boot: Boot) -> Result<(), ()> {
+    let Boot {
+        store,
+        park,
+        reset_cause,
+    } = boot;
     let Hardware {
         tim,
         iwdg,
@@ -199,7 +215,15 @@ fn start(
         return Err(());
     };
     let has_store = store.is_some();
-    match learning_task(learner, store) {
+    let storage = match (store, firmware::storage::snapshot_buffer()) {
+        (Some(store), Some(buf)) => Some(firmware::learning_task::Storage {
+            store,
+            buf,
+            parked: park.is_some(),
+        }),
+        _ => None,
+    };
+    match learning_task(learner, storage) {
         Ok(token) => spawner.spawn(token),
         Err(_) => {
             defmt::error!("learning task could not be spawned");
@@ -207,7 +231,8 @@ fn start(
         }
     }
 
-    step_tick::start(ticker, ra, dec, &mount);
+    let counts = park.map_or((0, 0), |p| (p.ra_steps, p.dec_steps));
+    step_tick::start(ticker, ra, dec, &mount, counts);
 
     let edges = hal::st4::start(st4_pins, firmware::guiding_task::allow_edge);
     interrupt::SDIO.set_priority(EXECUTOR_HIGH_PRIORITY);

@@ -28,6 +28,13 @@ impl AxisStepper {
         }
     }
 
+    /// The same axis, its count starting at `steps` (the counts a park
+    /// saved: the gear's phase carries over).
+    pub const fn with_steps(mut self, steps: i64) -> Self {
+        self.steps = steps;
+        self
+    }
+
     /// Sets the signed rate (steps/s), clamped to the axis's maximum and
     /// half the tick rate; NaN stops the axis. Returns the rate set.
     pub fn set_rate(&mut self, steps_per_s: f32) -> f32 {

@@ -6,6 +6,7 @@
 //! telemetry line to the ports that asked for it.
 
 use core::cell::{Cell, RefCell};
+use core::sync::atomic::{AtomicU8, Ordering};
 
 use embassy_executor::InterruptExecutor;
 use embassy_futures::select::{select3, Either3};
@@ -18,14 +19,14 @@ use embassy_time::{Instant, Timer};
 
 use hal::reset::Watchdog;
 use hal::st4::{PinEdge, St4Edges};
-use mkgp_mount::control_loop::port_mount::{LearnedFrame, PortMount, PortState};
+use mkgp_mount::control_loop::port_mount::{LearnedFrame, PortMount, PortState, StoreRequest};
 use mkgp_mount::control_loop::st4_feed::{EdgeQueue, EdgeSource, RawEdge};
 use mkgp_mount::control_loop::storm::StormGuard;
 use mkgp_mount::control_loop::{ControlLoop, FrameRecord};
-use mkgp_mount::mount::config::{Mount, MountConfig};
+use mkgp_mount::mount::config::Mount;
 use mkgp_mount::mount::guiding::FRAME_QUEUE;
 use mkgp_mount::mount::st4::{Line, St4Counters};
-use mkgp_mount::port::mount_port::{Identity, StepCounts};
+use mkgp_mount::port::mount_port::{Identity, ModelOrigin, StepCounts};
 use mkgp_mount::port::Interpreter;
 use mkgp_mount::safety::fault_record::FaultRecord;
 use mkgp_mount::safety::liveness::{Liveness, Progress, Verdict};
@@ -63,9 +64,16 @@ pub static LEARNED: Signal<CriticalSectionRawMutex, LearnedFrame> = Signal::new(
 /// A model reset asked on a command port, for the learning task.
 pub static RESET_MODEL: Signal<CriticalSectionRawMutex, ()> = Signal::new();
 
-/// A configuration to save, asked on a command port, for the learning task
-/// (which owns the store).
-pub static SAVE_CONFIG: Signal<CriticalSectionRawMutex, MountConfig> = Signal::new();
+/// What the ports asked of the store, for the learning task (which owns
+/// it). The port's own queue is as long, so this one has room for it.
+pub static STORE_REQUESTS: Channel<CriticalSectionRawMutex, StoreRequest, 4> = Channel::new();
+
+/// Where the model came from at start-up, set by the learning task once it
+/// restored it (a `ModelOrigin` as its index in `ORIGINS`).
+pub static MODEL_ORIGIN: AtomicU8 = AtomicU8::new(0);
+
+/// `MODEL_ORIGIN`'s values.
+pub const ORIGINS: [ModelOrigin; 3] = [ModelOrigin::Cold, ModelOrigin::Relearn, ModelOrigin::Park];
 
 /// What the ports report as the firmware.
 const IDENTITY: Identity = Identity {
@@ -148,6 +156,7 @@ fn progress() -> Progress {
         step_ticks: step_tick::ticks(),
         frames_learned: frames_learned(),
         frames_waiting: !FRAMES.is_empty(),
+        flash_operations: crate::firmware::storage::flash_operations(),
     }
 }
 
@@ -192,9 +201,12 @@ impl Ports {
         if self.state.take_reset_request() {
             RESET_MODEL.signal(());
         }
-        if let Some(config) = self.state.take_save_request() {
-            SAVE_CONFIG.signal(config);
+        while let Some(request) = self.state.take_store_request() {
+            // Cannot fail: the port's queue holds no more than this one.
+            let _ = STORE_REQUESTS.try_send(request);
         }
+        let origin = usize::from(MODEL_ORIGIN.load(Ordering::Relaxed));
+        self.state.model_origin = ORIGINS.get(origin).copied().unwrap_or_default();
     }
 
     /// A learned frame: the summary for the queries, its telemetry line to

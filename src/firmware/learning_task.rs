@@ -10,11 +10,29 @@ use mkgp_mount::mount::config::Mount;
 use mkgp_mount::mount::learner::Learner;
 
 use embassy_futures::select::{select, Either};
+use embassy_time::{Duration, Instant};
+use mkgp_mount::persist::Erase;
 
-use crate::firmware::guiding_task::{FRAMES, LEARNED, RESET_MODEL, SAVE_CONFIG};
+use crate::firmware::guiding_task::{
+    FRAMES, LEARNED, MODEL_ORIGIN, ORIGINS, RESET_MODEL, STORE_REQUESTS,
+};
 use crate::firmware::log;
-use crate::firmware::storage::{self, FirmwareStore};
+use crate::firmware::storage::{self, FirmwareStore, SnapshotBuffer};
 use crate::STAGES;
+
+/// How often the model is saved while it learns. With the two-stage
+/// model's 8 KiB snapshot a storage page takes 14 saves: 2.3 hours of
+/// guiding before a save would need an erase, which these saves never do
+/// (docs/persistence.md has the wear arithmetic at this cadence).
+const SAVE_EVERY: Duration = Duration::from_secs(600);
+
+/// The store and what the learning task needs to save into it.
+pub struct Storage {
+    pub store: &'static mut FirmwareStore,
+    pub buf: &'static mut SnapshotBuffer,
+    /// Parked at power-off: the counters, and the model's phase, carried over.
+    pub parked: bool,
+}
 
 /// The model's storage: a static, handed out once.
 static LEARNER: StaticCell<Learner<STAGES>> = StaticCell::new();
@@ -34,22 +52,26 @@ pub fn make_learner(mount: &Mount) -> Option<&'static mut Learner<STAGES>> {
     LEARNER.try_uninit().map(|slot| Learner::init(slot, mount))
 }
 
-/// Runs the model once per guide frame (the longest thing that runs here)
-/// and hands the learned frame with its feed-forward to the guiding task.
-/// A model reset asked on a port is carried out before the next frame; a
-/// configuration save asked on a port goes to the store at once.
-/// Everything else preempts it.
+/// Restores the saved model, then runs the model once per guide frame
+/// (the longest thing that runs here) and hands the learned frame with its
+/// feed-forward to the guiding task. A model reset asked on a port is
+/// carried out before the next frame; what a port asks of the store, at
+/// once; every [`SAVE_EVERY`] of learning the model is saved without
+/// erasing. Everything else preempts it.
 #[embassy_executor::task]
-pub async fn learning_task(
-    learner: &'static mut Learner<STAGES>,
-    mut store: Option<&'static mut FirmwareStore>,
-) {
+pub async fn learning_task(learner: &'static mut Learner<STAGES>, mut storage: Option<Storage>) {
+    if let Some(s) = storage.as_mut() {
+        let origin = storage::restore_model(s.store, learner, s.parked).await;
+        let index = ORIGINS.iter().position(|o| *o == origin).unwrap_or(0);
+        MODEL_ORIGIN.store(index as u8, Ordering::Relaxed);
+    }
+    let mut last_save = Instant::now();
     loop {
-        let msg = match select(FRAMES.receive(), SAVE_CONFIG.wait()).await {
+        let msg = match select(FRAMES.receive(), STORE_REQUESTS.receive()).await {
             Either::First(msg) => msg,
-            Either::Second(config) => {
-                if let Some(store) = store.as_deref_mut() {
-                    storage::save_config(store, config).await;
+            Either::Second(request) => {
+                if let Some(s) = storage.as_mut() {
+                    storage::carry_out(s.store, learner, s.buf, request).await;
                 }
                 continue;
             }
@@ -62,5 +84,11 @@ pub async fn learning_task(
         FRAMES_LEARNED.fetch_add(1, Ordering::Relaxed);
         LEARNED.signal(LearnedFrame::of(learner, &msg.frame, ff));
         log::frame(learner, &msg, &ff);
+        if let Some(s) = storage.as_mut() {
+            if last_save.elapsed() >= SAVE_EVERY {
+                last_save = Instant::now();
+                storage::save_model(s.store, learner, s.buf, Erase::Defer).await;
+            }
+        }
     }
 }

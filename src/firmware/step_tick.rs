@@ -108,7 +108,8 @@ pub fn step_counts() -> (i64, i64) {
 
 /// Takes the timer and both axes' pins, starts the tick and enables the
 /// drivers: from here on the motors follow the rates set.
-pub fn start(ticker: StepTicker, ra: StepAxis, dec: StepAxis, mount: &Mount) {
+/// Starts the step tick with the axes' counts at `counts` (RA, Dec).
+pub fn start(ticker: StepTicker, ra: StepAxis, dec: StepAxis, mount: &Mount, counts: (i64, i64)) {
     let tick_hz = mount.config().step_tick_hz;
     STEPPING.lock(|s| {
         let Ok(mut s) = s.try_borrow_mut() else {
@@ -117,11 +118,12 @@ pub fn start(ticker: StepTicker, ra: StepAxis, dec: StepAxis, mount: &Mount) {
         *s = Some(Stepping {
             ticker,
             ra: Axle {
-                stepper: AxisStepper::new(mount.max_ra_steps_per_s(), tick_hz),
+                stepper: AxisStepper::new(mount.max_ra_steps_per_s(), tick_hz).with_steps(counts.0),
                 pins: ra,
             },
             dec: Axle {
-                stepper: AxisStepper::new(mount.max_dec_steps_per_s(), tick_hz),
+                stepper: AxisStepper::new(mount.max_dec_steps_per_s(), tick_hz)
+                    .with_steps(counts.1),
                 pins: dec,
             },
         });

@@ -1,18 +1,43 @@
-//! The store on the board: opened at boot, where the configuration comes
-//! from, and the saves the command port asks for. The learning task owns
-//! it after boot (thread mode: a save never delays a pulse or a step; an
-//! erase, which stalls every flash read for 1-2 s, happens only on a save
-//! that allows it).
+//! The store on the board: opened at boot, where the configuration, the
+//! park and the model come from, and the saves. The learning task owns it
+//! after boot (thread mode: a save never delays a pulse or a step). An
+//! erase stalls every flash read, the step tick's included, for 1-2 s: the
+//! periodic model saves never erase ([`Erase::Defer`]); only the boot, a
+//! park, an unpark and the saves a user asks for may.
+
+use core::future::Future;
+use core::sync::atomic::{AtomicU32, Ordering};
 
 use static_cell::StaticCell;
 
 use hal::storage::StorageFlash;
+use mkgp_mount::control_loop::port_mount::StoreRequest;
+use mkgp_mount::model::snapshot::{Phase, SnapshotError, FORMAT_VERSION, SNAPSHOT_MAX};
 use mkgp_mount::mount::config::MountConfig;
-use mkgp_mount::persist::{Erase, LoadError, SaveError, Store};
+use mkgp_mount::mount::learner::Learner;
+use mkgp_mount::persist::{Erase, LoadError, Park, SaveError, Store};
+use mkgp_mount::port::mount_port::ModelOrigin;
 
 use crate::firmware::log;
+use crate::STAGES;
 
 pub type FirmwareStore = Store<StorageFlash>;
+
+/// Store operations begun and ended (odd while one runs), for the
+/// liveness check: a sector erase stalls the step tick for up to 2 s.
+static FLASH_OPERATIONS: AtomicU32 = AtomicU32::new(0);
+
+pub fn flash_operations() -> u32 {
+    FLASH_OPERATIONS.load(Ordering::Relaxed)
+}
+
+/// Runs a store operation with [`FLASH_OPERATIONS`] odd meanwhile.
+async fn flash_operation<T>(operation: impl Future<Output = T>) -> T {
+    FLASH_OPERATIONS.fetch_add(1, Ordering::Relaxed);
+    let out = operation.await;
+    FLASH_OPERATIONS.fetch_add(1, Ordering::Relaxed);
+    out
+}
 
 /// The store and its 8 KiB buffer, in a static.
 static STORE: StaticCell<FirmwareStore> = StaticCell::new();
@@ -68,10 +93,8 @@ pub async fn save_config(store: &mut FirmwareStore, config: MountConfig) {
         defmt::error!("configuration save: refused by validation (the port checked it)");
         return;
     };
-    report(
-        "configuration",
-        store.save_config(&mount, Erase::Allow).await,
-    );
+    let saved = flash_operation(store.save_config(&mount, Erase::Allow)).await;
+    report("configuration", saved);
 }
 
 /// Logs a save's outcome.
@@ -86,6 +109,125 @@ pub fn report<E>(what: &str, result: Result<(), SaveError<E>>) {
         }
         Err(SaveError::Geometry(_)) | Err(SaveError::Flash(_)) => {
             defmt::error!("{} not saved: the flash failed", what)
+        }
+    }
+}
+
+/// The park the mount was switched off in, if any: its step counts, which
+/// the axes start from so that the gear's phase carries over. Cleared once
+/// read, so that a later start does not take it for a park again.
+pub async fn boot_park(store: &mut FirmwareStore) -> Option<Park> {
+    match store.load_park().await {
+        Ok(park) => {
+            defmt::info!(
+                "parked at RA {} Dec {} steps: the gear's phase carries over",
+                park.ra_steps,
+                park.dec_steps
+            );
+            report("park cleared", store.clear_park(Erase::Allow).await);
+            Some(park)
+        }
+        Err(LoadError::NothingStored) => None,
+        Err(_) => {
+            defmt::warn!("park record unreadable: the gear's phase will be found again");
+            None
+        }
+    }
+}
+
+/// Takes the saved model back at start-up, with the phase from a park or
+/// unknown; returns where the model came from.
+pub async fn restore_model(
+    store: &mut FirmwareStore,
+    learner: &mut Learner<STAGES>,
+    parked: bool,
+) -> ModelOrigin {
+    let (phase, origin) = if parked {
+        // The counters continue the saved ones: so does gear time.
+        (
+            Phase::Known {
+                gear_time_offset_s: 0.0,
+            },
+            ModelOrigin::Park,
+        )
+    } else {
+        (Phase::Unknown, ModelOrigin::Relearn)
+    };
+    match store.load_model(FORMAT_VERSION).await {
+        Ok(bytes) => match learner.restore(bytes, phase) {
+            Ok(()) => {
+                defmt::info!("model restored ({} bytes)", bytes.len());
+                origin
+            }
+            Err(_) => {
+                defmt::warn!("stored model refused by its checks: learning from the start");
+                ModelOrigin::Cold
+            }
+        },
+        Err(LoadError::NothingStored) => {
+            defmt::info!("no stored model: learning from the start");
+            ModelOrigin::Cold
+        }
+        Err(_) => {
+            defmt::warn!("stored model unreadable or of another firmware: learning from the start");
+            ModelOrigin::Cold
+        }
+    }
+}
+
+/// The snapshot being written, for the store (`SNAPSHOT_MAX` bytes).
+pub type SnapshotBuffer = [u8; SNAPSHOT_MAX];
+
+static SNAPSHOT: StaticCell<SnapshotBuffer> = StaticCell::new();
+
+/// The snapshot buffer, once.
+pub fn snapshot_buffer() -> Option<&'static mut SnapshotBuffer> {
+    SNAPSHOT.try_init([0; SNAPSHOT_MAX])
+}
+
+/// Saves the learned model; `erase` says whether a sector may be erased
+/// (which stops tracking for 1-2 s).
+pub async fn save_model(
+    store: &mut FirmwareStore,
+    learner: &Learner<STAGES>,
+    buf: &mut SnapshotBuffer,
+    erase: Erase,
+) {
+    match learner.snapshot(buf) {
+        Ok(n) => {
+            let bytes = buf.get(..n).unwrap_or(&[]);
+            let saved = flash_operation(store.save_model(FORMAT_VERSION, bytes, erase)).await;
+            report("model", saved);
+        }
+        Err(SnapshotError::Placing) => {
+            defmt::info!("model not saved yet: its restored data awaits its phase")
+        }
+        Err(_) => defmt::error!("model not saved: its snapshot failed"),
+    }
+}
+
+/// Carries out what a port asked of the store.
+pub async fn carry_out(
+    store: &mut FirmwareStore,
+    learner: &Learner<STAGES>,
+    buf: &mut SnapshotBuffer,
+    request: StoreRequest,
+) {
+    match request {
+        StoreRequest::Config(config) => save_config(store, config).await,
+        StoreRequest::Model => save_model(store, learner, buf, Erase::Allow).await,
+        StoreRequest::Park(counts) => {
+            let park = Park {
+                ra_steps: counts.ra,
+                dec_steps: counts.dec,
+            };
+            let saved = flash_operation(store.save_park(park, Erase::Allow)).await;
+            report("park", saved);
+            save_model(store, learner, buf, Erase::Allow).await;
+        }
+        StoreRequest::Unpark => {
+            let saved = flash_operation(store.clear_park(Erase::Allow)).await;
+            report("unpark", saved);
         }
     }
 }

@@ -23,6 +23,11 @@ pub struct Progress {
     pub frames_learned: u32,
     /// Frames are queued for the learner.
     pub frames_waiting: bool,
+    /// Flash operations begun and ended (wrapping; odd while one runs). A
+    /// sector erase stalls every flash read, the step tick's and this
+    /// check's included, for up to 2 s: across one, progress is not
+    /// judged (the watchdog, above the longest erase, still is).
+    pub flash_operations: u32,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -43,6 +48,7 @@ pub struct Liveness {
     last_ticks: u32,
     frames_learned: u32,
     learner_idle_since_us: u64,
+    flash_operations: u32,
 }
 
 impl Liveness {
@@ -54,6 +60,7 @@ impl Liveness {
             last_ticks: progress.step_ticks,
             frames_learned: progress.frames_learned,
             learner_idle_since_us: now_us,
+            flash_operations: progress.flash_operations,
         }
     }
 
@@ -65,6 +72,13 @@ impl Liveness {
     /// Judges the progress at `now_us`.
     pub fn check(&mut self, now_us: u64, progress: Progress) -> Verdict {
         if now_us < self.next_check_us() {
+            return Verdict::Wait;
+        }
+        if progress.flash_operations != self.flash_operations || progress.flash_operations % 2 == 1
+        {
+            // A flash operation ran since the last check or runs now: judge
+            // again from here.
+            *self = Liveness::new(self.tick_hz, now_us, progress);
             return Verdict::Wait;
         }
         let elapsed_us = now_us - self.last_check_us;
@@ -112,6 +126,7 @@ mod tests {
             step_ticks: ticking(i),
             frames_learned: (i / 20) as u32,
             frames_waiting: i % 20 != 0,
+            ..Progress::default()
         });
         assert!(v.iter().all(|&v| v == Verdict::Feed));
     }
@@ -150,6 +165,28 @@ mod tests {
         assert!(lossy.iter().all(|&v| v == Verdict::Feed));
     }
 
+    /// Across a flash operation (a sector erase stalls the step tick for
+    /// up to 2 s) nothing is judged and nothing fed; the check after it
+    /// judges from there, and a stall after it is still caught.
+    #[test]
+    fn a_flash_operation_is_not_a_stall() {
+        let mut l = Liveness::new(HZ, 0, Progress::default());
+        let at = |ticks: u32, ops: u32| Progress {
+            step_ticks: ticks,
+            flash_operations: ops,
+            ..Progress::default()
+        };
+        assert_eq!(l.check(CHECK_EVERY_US, at(5_000, 0)), Verdict::Feed);
+        // Begun: the next checks wait; 2 s of stalled ticks pass unjudged.
+        assert_eq!(l.check(2 * CHECK_EVERY_US, at(10_000, 1)), Verdict::Wait);
+        assert_eq!(l.check(22 * CHECK_EVERY_US, at(10_002, 2)), Verdict::Wait);
+        assert_eq!(l.check(23 * CHECK_EVERY_US, at(15_002, 2)), Verdict::Feed);
+        assert_eq!(
+            l.check(24 * CHECK_EVERY_US, at(15_002, 2)),
+            Verdict::Stalled(Part::StepTick)
+        );
+    }
+
     #[test]
     fn the_tick_counter_may_wrap() {
         let v = run(10, |i| Progress {
@@ -167,6 +204,7 @@ mod tests {
             step_ticks: ticking(i),
             frames_learned: i.min(stuck_from) as u32,
             frames_waiting: true,
+            ..Progress::default()
         });
         let first = v.iter().position(|&v| v != Verdict::Feed);
         assert_eq!(first, Some(stuck_from - 1 + 10 * per_s));
@@ -179,6 +217,7 @@ mod tests {
             step_ticks: ticking(i),
             frames_learned: 3,
             frames_waiting: false,
+            ..Progress::default()
         });
         assert!(v.iter().all(|&v| v == Verdict::Feed));
     }
