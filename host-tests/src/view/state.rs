@@ -148,10 +148,11 @@ pub fn json(s: &Session) -> String {
         .map(|st| f64::from(st.period_ms) / 1000.0)
         .collect();
     let fit = analysis::fit_stages(&samples, &periods);
-    let spectrum = analysis::detrend(&samples)
-        .map(|(d, _)| analysis::spectrum(&d))
+    let detrended = analysis::detrend(&samples)
+        .map(|(d, _)| d)
         .unwrap_or_default();
-    let peaks: Vec<String> = analysis::peaks(&spectrum)
+    let spectrum = analysis::spectrum(&detrended);
+    let peaks: Vec<String> = analysis::peaks(&detrended, &spectrum)
         .iter()
         .take(5)
         .map(|&(p, a)| format!("[{},{}]", num(p), num(a)))
