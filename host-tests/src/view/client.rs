@@ -275,12 +275,14 @@ fn session(target: &Target, s: &Mutex<Session>, stop: &AtomicBool) -> std::io::R
 }
 
 /// Runs until `stop`: connects, serves, and when the port goes away says
-/// so on the page and tries again every second.
+/// so on the page (until it is back) and tries again every second.
 pub fn run(target: &Target, s: &Mutex<Session>, stop: &AtomicBool) {
+    // Once up, a port that cannot be opened again has gone away.
+    let mut was_up = false;
     while !stop.load(Ordering::SeqCst) {
         if let Err(e) = session(target, s, stop) {
             let mut s = s.lock().unwrap();
-            let was_up = s.link == LinkState::Connected;
+            was_up |= s.link == LinkState::Connected;
             let why = format!("{target}: {e}");
             s.link = LinkState::Down(why.clone());
             s.problem(
