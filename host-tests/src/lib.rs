@@ -21,5 +21,6 @@ pub mod replay;
 pub mod st4_sim;
 pub mod svg;
 pub mod table;
+pub mod view;
 
 pub use data::Error;

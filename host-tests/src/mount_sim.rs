@@ -4,8 +4,12 @@
 //! PHD2 through INDI.
 //!
 //! The mount is `st4_sim`'s [`Rig`] (the same `ControlLoop`, `Learner<2>`
-//! and step generators as `guide-sim st4`), with its own guider switched
-//! off: the client guides, through the port. Each transport has its own
+//! and step generators as `guide-sim st4`). Its own simulated camera and
+//! PHD2-like guider pulse the ST4 input unless [`Options::st4_guider`] is
+//! off, so that the mount learns with no client guiding (a demo for
+//! `guide-sim view`); off, only the port's client guides (the tests that
+//! measure a client's pulses exactly). Simulated time runs
+//! [`Options::speed`] times real time. Each transport has its own
 //! `Interpreter` (precision, selected rate, site and telemetry are a
 //! port's own, as on the board); the sync is the mount's, shared.
 //!
@@ -39,6 +43,10 @@ pub struct Options {
     pub pty: Option<PathBuf>,
     /// A TCP port on 127.0.0.1.
     pub tcp: Option<u16>,
+    /// Simulated time per real time (1: real time).
+    pub speed: f64,
+    /// The rig's own camera and guider pulse the ST4 input.
+    pub st4_guider: bool,
 }
 
 /// The identity the virtual mount reports: the library's, marked simulated.
@@ -167,7 +175,7 @@ fn serve_bytes(
 /// saying where it listens.
 pub fn serve(opts: Options, stop: &AtomicBool, ready: impl FnOnce(&str)) -> io::Result<()> {
     let mut rig = Rig::new(&opts.case, Firmware::Mkgp, opts.noise_px, 1);
-    rig.guider_on = false;
+    rig.guider_on = opts.st4_guider;
     let mut state = PortState::new(&rig.mount, IDENTITY, ResetCause::PowerOn);
     let mut pty = match &opts.pty {
         Some(link) => Some((Pty::open(link)?, Interpreter::new())),
@@ -194,10 +202,12 @@ pub fn serve(opts: Options, stop: &AtomicBool, ready: impl FnOnce(&str)) -> io::
         where_.push(format!("tcp {}", l.local_addr()?));
     }
     ready(&format!(
-        "guide-sim mount: ready on {}, case {}, noise {} px",
+        "guide-sim mount: ready on {}, case {}, noise {} px, speed {}, st4 guider {}",
         where_.join(", "),
         opts.case.name,
-        opts.noise_px
+        opts.noise_px,
+        opts.speed,
+        if opts.st4_guider { "on" } else { "off" }
     ));
 
     let start = Instant::now();
@@ -224,7 +234,7 @@ pub fn serve(opts: Options, stop: &AtomicBool, ready: impl FnOnce(&str)) -> io::
         // SAFETY: pfds is a live array of pfds.len() pollfd. A signal ends
         // the wait early (EINTR), which the loop's check handles.
         unsafe { libc::poll(pfds.as_mut_ptr(), pfds.len() as libc::nfds_t, POLL_MS) };
-        let now_us = start.elapsed().as_micros() as u64;
+        let now_us = (start.elapsed().as_secs_f64() * opts.speed * 1e6) as u64;
         rig.run_until(now_us.max(rig.now_us));
 
         if let Some((p, port)) = &mut pty {

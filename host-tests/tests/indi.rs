@@ -221,7 +221,15 @@ fn indi_lx200generic_connects_syncs_and_guides_the_virtual_mount() {
     // The virtual mount: pty for the driver, TCP for us.
     let mut sim = spawn_group(
         Command::new(env!("CARGO_BIN_EXE_guide-sim"))
-            .args(["mount", "--case", "C1", "--tcp", "0", "--pty"])
+            .args([
+                "mount",
+                "--case",
+                "C1",
+                "--no-st4-guider",
+                "--tcp",
+                "0",
+                "--pty",
+            ])
             .arg(&pty)
             .stdout(Stdio::piped()),
     );

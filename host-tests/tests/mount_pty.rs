@@ -26,7 +26,7 @@ impl Drop for Sim {
 /// ready line.
 fn start(link: &Path) -> (Sim, String) {
     let child = Command::new(env!("CARGO_BIN_EXE_guide-sim"))
-        .args(["mount", "--case", "C1", "--pty"])
+        .args(["mount", "--case", "C1", "--no-st4-guider", "--pty"])
         .arg(link)
         .stdout(Stdio::piped())
         .spawn()

@@ -9,6 +9,8 @@
 //!               [--aggressiveness A] [--exposure S] [--min-move PX] [--calibration K]
 //! guide-sim nights [--case ID] [--cases FILE] [--noise PX] [--park] [--csv]
 //! guide-sim mount [--pty PATH] [--tcp PORT] [--case ID] [--cases FILE] [--noise PX]
+//!                 [--speed X] [--no-st4-guider]
+//! guide-sim view (--port DEVICE | --pty PATH | --tcp HOST:PORT) [--listen ADDR:PORT]
 //! ```
 //! `guide-sim <subcommand> --help` describes each; the arguments are
 //! parsed by clap (usage errors exit with 2).
@@ -102,12 +104,44 @@ enum Command {
     ///
     /// The firmware's loop (ControlLoop, Learner<2>, the step generators, as in
     /// `st4`) on a virtual mount whose RA error is a synthetic case (default
-    /// C1), in real time, with the command port (LX200 and our `:~` commands,
-    /// docs/port.md) served on a pseudo-terminal linked at PATH and/or a TCP
-    /// port on 127.0.0.1. Prints one line when ready; runs until SIGINT or
-    /// SIGTERM, then removes the link.
+    /// C1), in real time (or --speed X times it), with the command port (LX200
+    /// and our `:~` commands, docs/port.md) served on a pseudo-terminal linked
+    /// at PATH and/or a TCP port on 127.0.0.1. The rig's own simulated camera
+    /// and PHD2-like guider pulse its ST4 input, so that it learns with no
+    /// client guiding; --no-st4-guider leaves the guiding to the port's client.
+    /// Prints one line when ready; runs until SIGINT or SIGTERM, then removes
+    /// the link.
     #[command(verbatim_doc_comment)]
     Mount(MountArgs),
+    /// A live web page of what the mount learns, from its telemetry
+    ///
+    /// Connects to the command port of a board (--port, a serial device set to
+    /// 9600 8N1) or of the virtual mount (--pty, --tcp), checks that it is
+    /// mkgp-mount (:GVP#, :~V#), switches its telemetry on (:~T1#), asks for the
+    /// counters every 3 s and serves a page at --listen that updates live: the
+    /// pointing error over time, the gear error over the worm's phase with each
+    /// stage's share, its spectrum with the stages marked, learning and counters;
+    /// the session saves as CSV and the charts as SVG or PNG. Everything is served
+    /// from this binary. Prints one line with the URL; runs until SIGINT or SIGTERM.
+    #[command(verbatim_doc_comment)]
+    View(ViewArgs),
+}
+
+#[derive(Args)]
+#[command(group(clap::ArgGroup::new("target").required(true).args(["port", "pty", "tcp"])))]
+struct ViewArgs {
+    /// A board's serial port (USB serial or UART), e.g. /dev/ttyACM0
+    #[arg(long, value_name = "DEVICE")]
+    port: Option<PathBuf>,
+    /// The virtual mount's pty link (guide-sim mount --pty PATH)
+    #[arg(long, value_name = "PATH")]
+    pty: Option<PathBuf>,
+    /// The virtual mount's TCP port (guide-sim mount --tcp PORT)
+    #[arg(long, value_name = "HOST:PORT")]
+    tcp: Option<String>,
+    /// Where the page is served (port 0: any free port)
+    #[arg(long, value_name = "ADDR:PORT", default_value = "127.0.0.1:8080")]
+    listen: String,
 }
 
 #[derive(Args)]
@@ -124,9 +158,15 @@ struct MountArgs {
     /// The synthetic cases [default: host-tests/data/synthetic_cases.csv]
     #[arg(long, value_name = "FILE")]
     cases: Option<PathBuf>,
-    /// Noise of the (unused) camera, px
+    /// Noise of the simulated guide camera, px
     #[arg(long, value_name = "PX", value_parser = noise_px, default_value = "0")]
     noise: f64,
+    /// Simulated time runs X times real time
+    #[arg(long, value_name = "X", value_parser = in_range(0.01, 1000.0), default_value = "1")]
+    speed: f64,
+    /// Switch off the rig's own camera and guider: only the port's client guides
+    #[arg(long)]
+    no_st4_guider: bool,
 }
 
 #[derive(Args)]
@@ -231,6 +271,7 @@ fn main() -> ExitCode {
         Command::St4(args) => cmd_st4(args),
         Command::Nights(args) => cmd_nights(args),
         Command::Mount(args) => cmd_mount(args),
+        Command::View(args) => cmd_view(args),
     }
 }
 
@@ -242,6 +283,41 @@ extern "C" fn on_signal(_: libc::c_int) {
     STOP.store(true, Ordering::SeqCst);
 }
 
+/// SIGINT and SIGTERM set [`STOP`].
+fn stop_on_signals() {
+    let handler = on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
+    // SAFETY: the handler only stores to an atomic.
+    unsafe {
+        libc::signal(libc::SIGINT, handler);
+        libc::signal(libc::SIGTERM, handler);
+    }
+}
+
+/// Prints a ready line at once (a test or script waits for it).
+fn print_ready(line: &str) {
+    println!("{line}");
+    let _ = std::io::stdout().flush();
+}
+
+fn cmd_view(args: ViewArgs) -> ExitCode {
+    use host_tests::view::link::Target;
+    let target = match (args.port, args.pty, args.tcp) {
+        (Some(p), _, _) => Target::Serial(p),
+        (_, Some(p), _) => Target::Pty(p),
+        (_, _, Some(a)) => Target::Tcp(a),
+        // clap's group requires one.
+        (None, None, None) => unreachable!(),
+    };
+    stop_on_signals();
+    match host_tests::view::run(target, &args.listen, &STOP, print_ready) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("guide-sim view: {}: {e}", args.listen);
+            ExitCode::FAILURE
+        }
+    }
+}
+
 fn cmd_mount(args: MountArgs) -> ExitCode {
     let Some((path, cases)) = load_cases(args.cases) else {
         return ExitCode::FAILURE;
@@ -250,23 +326,16 @@ fn cmd_mount(args: MountArgs) -> ExitCode {
         eprintln!("guide-sim: {}: no case {}", path.display(), args.case);
         return ExitCode::FAILURE;
     };
-    let handler = on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
-    // SAFETY: the handler only stores to an atomic.
-    unsafe {
-        libc::signal(libc::SIGINT, handler);
-        libc::signal(libc::SIGTERM, handler);
-    }
+    stop_on_signals();
     let opts = mount_sim::Options {
         case,
         noise_px: args.noise,
         pty: args.pty,
         tcp: args.tcp,
+        speed: args.speed,
+        st4_guider: !args.no_st4_guider,
     };
-    let ready = |line: &str| {
-        println!("{line}");
-        let _ = std::io::stdout().flush();
-    };
-    match mount_sim::serve(opts, &STOP, ready) {
+    match mount_sim::serve(opts, &STOP, print_ready) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("guide-sim mount: {e}");
