@@ -205,6 +205,13 @@ impl<S: Scalar> Grid<S> {
         }
     }
 
+    /// Drop the `count` oldest cells; the others keep their times.
+    pub fn drop_oldest(&mut self, count: usize) {
+        let count = count.min(self.len);
+        self.head = (self.head + count) % GRID_CELLS;
+        self.len -= count;
+    }
+
     /// Insert `count` cells without data (gear interpolated between the
     /// neighbours, `variance`) before held cell `at` (0 = oldest): the cells
     /// before it move back in time by `count` cells, the newer ones keep
@@ -318,11 +325,11 @@ mod tests {
             g.push(t, t, 1.0);
             t += 2.0;
         }
-        let (len, newest) = (g.len(), g.cell_time(g.len() - 1) + g.origin().unwrap());
+        let (len, newest_time) = (g.len(), g.cell_time(g.len() - 1) + g.origin().unwrap());
         let old_time = g.cell_time(10) + g.origin().unwrap();
         g.insert_gap(100, 7, 1e4);
         assert_eq!(g.len(), len + 7);
-        assert_eq!(g.cell_time(g.len() - 1) + g.origin().unwrap(), newest);
+        assert_eq!(g.cell_time(g.len() - 1) + g.origin().unwrap(), newest_time);
         assert_eq!(g.cell_time(10) + g.origin().unwrap(), old_time - 35.0);
         // The gap: no data, the gear error interpolated across it.
         for i in 100..107 {
@@ -332,6 +339,14 @@ mod tests {
         assert_eq!(g.cell(107).1, 1.0);
         // The next sample continues where the grid was.
         assert_eq!(g.push(t, t, 1.0), Push::Accepted { new_cells: 1 });
+        let newest = g.cell(g.len() - 1);
+        g.drop_oldest(107);
+        assert_eq!(g.cell(0).1, 1.0);
+        assert_eq!(g.cell(g.len() - 1), newest);
+        assert_eq!(
+            g.cell_time(g.len() - 1) + g.origin().unwrap(),
+            newest_time + 5.0
+        );
     }
 
     #[test]

@@ -108,9 +108,10 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     }
 
     /// Take the learned state back from `snapshot` (checked by
-    /// [`Snapshot::parse`]): the periods, stages and gates always; the data
-    /// too if `phase` is known (it is placed at the first frame). The
-    /// fault counters stay. A snapshot of another stage count is refused
+    /// [`Snapshot::parse`]): the periods, stages and gates, and the cells,
+    /// placed at the first frame as `phase` allows and, unless every
+    /// stage's phase is known, again by the phase search half a worm period
+    /// later. The fault counters stay. A snapshot of another stage count is refused
     /// and nothing changes.
     pub fn restore(&mut self, snapshot: &Snapshot<'_>, phase: Phase) -> Result<(), SnapshotError> {
         if snapshot.stages() != N {
@@ -197,8 +198,8 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     }
 
     /// Whether the model must wait for the phase search (the restored data
-    /// is not placed yet: no prediction); runs the search when a worm
-    /// period of new data is in. Called before each fit.
+    /// is not placed yet: no prediction); runs the search when
+    /// [`PHASE_SEARCH_PERIODS`] of new data are in. Called before each fit.
     pub(super) fn phase_search_pending(&mut self) -> bool {
         let Some(search) = self.phase_search else {
             return false;
@@ -213,17 +214,27 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         false
     }
 
-    /// Match the new data (held cells `saved..`) against every stretch of
-    /// the saved data (cells `..saved`): the shift whose difference is
-    /// flattest (least squares of a level and a slope, measured cells only)
-    /// puts each new cell at the phase of a saved one. The saved data then
-    /// moves back by the gap that makes those equal phases lie a whole
-    /// number of every stage's periods apart (as [`placement`](Self::placement)
-    /// weighs them), and to the new data's level.
+    /// The phase search over the saved data (held cells `..saved`) and the
+    /// new (`saved..`); without a match (too little measured) saved data
+    /// at no known phase is dropped.
     fn search_phase(&mut self, saved: usize, worm_known: bool) {
+        if !self.match_saved_data(saved, worm_known) && !worm_known {
+            self.grid.drop_oldest(saved);
+        }
+    }
+
+    /// Match the new data against every stretch of the saved data (with
+    /// `worm_known`, those at the worm's phase): the shift whose difference
+    /// is flattest (least squares of a level and a slope, measured cells
+    /// only) puts each new cell at the phase of a saved one. The saved data
+    /// then moves back by the gap that makes those equal phases lie a whole
+    /// number of every stage's periods apart (as
+    /// [`placement`](Self::placement) weighs them), and to the new data's
+    /// level. False if nothing matched (and nothing moved).
+    fn match_saved_data(&mut self, saved: usize, worm_known: bool) -> bool {
         let new = self.grid.len().saturating_sub(saved);
         if new < 2 || saved < new {
-            return;
+            return false;
         }
         let grid = &self.grid;
         let measured = |i: usize| {
@@ -265,7 +276,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         }
         let (residual, shift, level) = best;
         if !residual.is_finite() {
-            return;
+            return false;
         }
         // Equal phases now lie (saved - shift) cells apart.
         let lag = CELL_S * (saved - shift) as f64;
@@ -281,6 +292,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         }
         self.grid.shift_gear(0..saved, level);
         self.grid.insert_gap(saved, gap.1, DARK_VARIANCE);
+        true
     }
 
     /// How far off a placement is, s²: the stages' phases (weighted by
@@ -485,6 +497,26 @@ mod tests {
         // Half a worm period (216 s) and a frame.
         run(&mut r, 777.0, 0.0, 100.0, 240.0, 0.0);
         assert_eq!(r.snapshot(&mut out), Ok(SNAPSHOT_MAX));
+    }
+
+    /// Nothing measured by the time of the search: the saved data, at no
+    /// known phase, is dropped and learning goes on from the new.
+    #[test]
+    fn without_a_match_the_saved_data_is_dropped() {
+        let g = learned();
+        let mut buf = [0u8; SNAPSHOT_MAX];
+        let n = g.snapshot(&mut buf).unwrap();
+        let mut r = std::boxed::Box::new(Guider::<f32, 2>::new(*g.config()));
+        r.restore(&Snapshot::parse(&buf[..n], 2).unwrap(), Phase::Unknown)
+            .unwrap();
+        let mut t = 0.0;
+        while t < 240.0 {
+            r.observe(t, None, 0.0, 10.0, 2.0);
+            t += 2.0;
+        }
+        assert!(r.phase_search.is_none());
+        assert!(r.grid.len() < 60, "{}", r.grid.len());
+        assert!(r.snapshot(&mut buf).is_ok());
     }
 
     #[test]
