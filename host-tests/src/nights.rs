@@ -4,8 +4,9 @@
 //! - **Night 1.** 3 h of guiding from a cold model; `settled` is the
 //!   pointing RMS over its hours 1-3.
 //! - **Power cycle.** The learner's model is saved with
-//!   `Learner::snapshot`, the bytes go through [`power_cycle`] (the store's
-//!   boundary) and are restored with `Learner::restore` into the fresh
+//!   `Learner::snapshot`, the bytes go through [`power_cycle`] (the firmware's
+//!   store, onto a simulated flash, and back) and are restored with
+//!   `Learner::restore` into the fresh
 //!   learner of a new rig: the step counter, and with it gear time, starts
 //!   again at 0.
 //! - **Night 2.** The gear stands at a phase drawn from the seed (uniform
@@ -24,7 +25,10 @@
 
 use crate::cases::Case;
 use crate::st4_sim::{Firmware, Rig, SEEDS};
-use mkgp_mount::model::snapshot::{Phase, SNAPSHOT_MAX};
+use embassy_futures::block_on;
+use mkgp_mount::model::snapshot::{Phase, FORMAT_VERSION, SNAPSHOT_MAX};
+use mkgp_mount::persist::sim_flash::SimFlash;
+use mkgp_mount::persist::{Erase, Store};
 use mkgp_mount::testing::SplitMix64;
 use rayon::prelude::*;
 
@@ -54,10 +58,22 @@ pub struct Row {
 }
 
 /// The power cycle of the saved model's bytes: what comes back at boot.
-/// The flash store goes here (`src/persist/`); until then the bytes come
-/// back as they were.
+/// They go through the firmware's own store (`mkgp_mount::persist`) onto a
+/// simulated STM32F4 flash of two 128 KiB sectors, and a new store over
+/// the same flash (the next boot) loads them back.
 pub fn power_cycle(saved: &[u8]) -> Vec<u8> {
-    saved.to_vec()
+    const SECTOR: usize = 128 * 1024;
+    let mut flash = vec![0xFF; 2 * SECTOR];
+    let range = 0..flash.len() as u32;
+    {
+        let mut night_1 = Store::new(SimFlash::<SECTOR>::new(&mut flash), range.clone());
+        block_on(night_1.save_model(FORMAT_VERSION, saved, Erase::Allow))
+            .unwrap_or_else(|e| panic!("the model does not fit the store: {e:?}"));
+    }
+    let mut boot = Store::new(SimFlash::<SECTOR>::new(&mut flash), range);
+    block_on(boot.load_model(FORMAT_VERSION))
+        .unwrap_or_else(|e| panic!("the saved model does not load: {e:?}"))
+        .to_vec()
 }
 
 /// Where the gear stands when night 2 starts.
