@@ -118,6 +118,7 @@ async fn main(spawner: Spawner) {
             ra,
             dec,
             st4_pins: board.st4,
+            index_pins: board.index,
         },
         config,
         Boot {
@@ -158,6 +159,7 @@ struct Hardware {
     ra: StepAxis,
     dec: StepAxis,
     st4_pins: hal::board::St4Pins,
+    index_pins: hal::worm_index::IndexPins,
 }
 
 /// What the boot found: the store, the park, why the board started.
@@ -185,6 +187,7 @@ fn start(spawner: Spawner, hw: Hardware, config: MountConfig, boot: Boot) -> Res
         ra,
         dec,
         st4_pins,
+        index_pins,
     } = hw;
     let mount = match config.validate() {
         Ok(mount) => mount,
@@ -220,6 +223,7 @@ fn start(spawner: Spawner, hw: Hardware, config: MountConfig, boot: Boot) -> Res
             store,
             buf,
             parked: park.is_some(),
+            index: mkgp_mount::mount::worm_index::WormIndex::new(&mount),
         }),
         _ => None,
     };
@@ -244,6 +248,14 @@ fn start(spawner: Spawner, hw: Hardware, config: MountConfig, boot: Boot) -> Res
         Err(_) => {
             defmt::error!("guiding task could not be spawned");
             return Err(());
+        }
+    }
+    // The worm index only matters with a store to restore from.
+    if has_store {
+        let input = hal::worm_index::IndexInput::new(index_pins);
+        match firmware::guiding_task::index_task(input) {
+            Ok(token) => high.spawn(token),
+            Err(_) => defmt::error!("worm-index task could not be spawned"),
         }
     }
     Ok(())

@@ -21,6 +21,7 @@
 //! | Dec DIR         | PB4 | PB10, D6 | PE10 |
 //! | Dec ENABLE (low)| PB5 | PA9, D8 | PE12 |
 //! | status LED      | PC13 (active low) | PA5 = LD2, D13 (active high) | PD12 = LD4 green (active high) |
+//! | worm index (optional, low at the mark) | PA1 (EXTI1) | PA1 (EXTI1), A1 | PA1 (EXTI1) |
 //!
 //! The command port's USB and UART pins are in [`crate::serial`]'s table.
 //! Left free on purpose: SPI1 PA5-PA7 on the Black Pill (driver
@@ -152,6 +153,7 @@ pub struct Board {
     pub dec: DecPins,
     pub led: Peri<'static, pins::Led>,
     pub ports: PortPins,
+    pub index: crate::worm_index::IndexPins,
 }
 
 /// Moves the board's pins out of an `embassy_stm32::Peripherals` binding and
@@ -188,6 +190,10 @@ macro_rules! take_board {
                 enable: $p.PB5,
             },
             led: $p.PC13,
+            index: $crate::worm_index::IndexPins {
+                pin: $p.PA1,
+                exti: $p.EXTI1,
+            },
             ports: $crate::board::PortPins {
                 usb: $crate::serial::UsbPins {
                     usb: $p.USB_OTG_FS,
@@ -233,6 +239,10 @@ macro_rules! take_board {
                 enable: $p.PA9,
             },
             led: $p.PA5,
+            index: $crate::worm_index::IndexPins {
+                pin: $p.PA1,
+                exti: $p.EXTI1,
+            },
             ports: $crate::board::PortPins {
                 vcp: $crate::serial::UartPins {
                     uart: $p.USART2,
@@ -278,6 +288,10 @@ macro_rules! take_board {
                 enable: $p.PE12,
             },
             led: $p.PD12,
+            index: $crate::worm_index::IndexPins {
+                pin: $p.PA1,
+                exti: $p.EXTI1,
+            },
             ports: $crate::board::PortPins {
                 usb: $crate::serial::UsbPins {
                     usb: $p.USB_OTG_FS,

@@ -16,6 +16,7 @@
 //! - [`serial`]: the command port's transports, USB CDC-ACM and UARTs.
 //! - [`flash_map`], [`storage`]: where the store's sectors are, and the
 //!   flash driver that reaches them.
+//! - [`worm_index`]: the optional worm-index sensor's input.
 //!
 //! This crate knows the hardware only; what edges mean and how many steps to
 //! make is the `mkgp-mount` library's business, glued together in the
@@ -49,6 +50,7 @@ pub mod serial;
 pub mod st4;
 pub mod stepper;
 pub mod storage;
+pub mod worm_index;
 
 /// Re-exported so that users of the board types need not name the version.
 pub use embassy_stm32;

@@ -6,7 +6,6 @@
 //! telemetry line to the ports that asked for it.
 
 use core::cell::{Cell, RefCell};
-use core::sync::atomic::{AtomicU8, Ordering};
 
 use embassy_executor::InterruptExecutor;
 use embassy_futures::select::{select3, Either3};
@@ -68,12 +67,26 @@ pub static RESET_MODEL: Signal<CriticalSectionRawMutex, ()> = Signal::new();
 /// it). The port's own queue is as long, so this one has room for it.
 pub static STORE_REQUESTS: Channel<CriticalSectionRawMutex, StoreRequest, 4> = Channel::new();
 
-/// Where the model came from at start-up, set by the learning task once it
-/// restored it (a `ModelOrigin` as its index in `ORIGINS`).
-pub static MODEL_ORIGIN: AtomicU8 = AtomicU8::new(0);
+/// Where the model came from, set by the learning task when it restores
+/// it (at start-up, or at the worm index's first pass).
+pub static MODEL_ORIGIN: Mutex<CriticalSectionRawMutex, Cell<ModelOrigin>> =
+    Mutex::new(Cell::new(ModelOrigin::Cold));
 
-/// `MODEL_ORIGIN`'s values.
-pub const ORIGINS: [ModelOrigin; 3] = [ModelOrigin::Cold, ModelOrigin::Relearn, ModelOrigin::Park];
+/// The RA step count at the worm-index sensor's latest edge, for the
+/// learning task.
+pub static INDEX_EDGE: Signal<CriticalSectionRawMutex, i64> = Signal::new();
+
+/// Reports each edge of the worm-index sensor with the RA step count then
+/// (on the high-priority executor: the count is taken within microseconds
+/// of the edge).
+#[embassy_executor::task]
+pub async fn index_task(mut input: hal::worm_index::IndexInput) {
+    loop {
+        input.next_pass().await;
+        let (ra_steps, _) = step_counts();
+        INDEX_EDGE.signal(ra_steps);
+    }
+}
 
 /// What the ports report as the firmware.
 const IDENTITY: Identity = Identity {
@@ -205,8 +218,7 @@ impl Ports {
             // Cannot fail: the port's queue holds no more than this one.
             let _ = STORE_REQUESTS.try_send(request);
         }
-        let origin = usize::from(MODEL_ORIGIN.load(Ordering::Relaxed));
-        self.state.model_origin = ORIGINS.get(origin).copied().unwrap_or_default();
+        self.state.model_origin = MODEL_ORIGIN.lock(Cell::get);
     }
 
     /// A learned frame: the summary for the queries, its telemetry line to

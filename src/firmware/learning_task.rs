@@ -5,16 +5,18 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use static_cell::StaticCell;
 
-use mkgp_mount::control_loop::port_mount::LearnedFrame;
+use mkgp_mount::control_loop::port_mount::{LearnedFrame, StoreRequest};
+use mkgp_mount::control_loop::FrameRecord;
 use mkgp_mount::mount::config::Mount;
 use mkgp_mount::mount::learner::Learner;
+use mkgp_mount::mount::worm_index::WormIndex;
 
-use embassy_futures::select::{select, Either};
+use embassy_futures::select::{select3, Either3};
 use embassy_time::{Duration, Instant};
 use mkgp_mount::persist::Erase;
 
 use crate::firmware::guiding_task::{
-    FRAMES, LEARNED, MODEL_ORIGIN, ORIGINS, RESET_MODEL, STORE_REQUESTS,
+    FRAMES, INDEX_EDGE, LEARNED, MODEL_ORIGIN, RESET_MODEL, STORE_REQUESTS,
 };
 use crate::firmware::log;
 use crate::firmware::storage::{self, FirmwareStore, SnapshotBuffer};
@@ -32,6 +34,8 @@ pub struct Storage {
     pub buf: &'static mut SnapshotBuffer,
     /// Parked at power-off: the counters, and the model's phase, carried over.
     pub parked: bool,
+    /// The worm-index sensor's passes (none if no sensor is fitted).
+    pub index: WormIndex,
 }
 
 /// The model's storage: a static, handed out once.
@@ -52,26 +56,59 @@ pub fn make_learner(mount: &Mount) -> Option<&'static mut Learner<STAGES>> {
     LEARNER.try_uninit().map(|slot| Learner::init(slot, mount))
 }
 
+/// What can wake the learning task.
+enum Event {
+    Frame(FrameRecord),
+    Store(StoreRequest),
+    /// The worm-index sensor's edge, at this RA step count.
+    Index(i64),
+}
+
 /// Restores the saved model, then runs the model once per guide frame
 /// (the longest thing that runs here) and hands the learned frame with its
 /// feed-forward to the guiding task. A model reset asked on a port is
 /// carried out before the next frame; what a port asks of the store, at
 /// once; every [`SAVE_EVERY`] of learning the model is saved without
-/// erasing. Everything else preempts it.
+/// erasing. At the worm-index sensor's first pass, unless a park gave the
+/// phase, the saved model is restored again with the worm's phase from
+/// the sensor. Everything else preempts it.
 #[embassy_executor::task]
 pub async fn learning_task(learner: &'static mut Learner<STAGES>, mut storage: Option<Storage>) {
     if let Some(s) = storage.as_mut() {
         let origin = storage::restore_model(s.store, learner, s.parked).await;
-        let index = ORIGINS.iter().position(|o| *o == origin).unwrap_or(0);
-        MODEL_ORIGIN.store(index as u8, Ordering::Relaxed);
+        MODEL_ORIGIN.lock(|o| o.set(origin));
     }
     let mut last_save = Instant::now();
     loop {
-        let msg = match select(FRAMES.receive(), STORE_REQUESTS.receive()).await {
-            Either::First(msg) => msg,
-            Either::Second(request) => {
+        let event = match select3(
+            FRAMES.receive(),
+            STORE_REQUESTS.receive(),
+            INDEX_EDGE.wait(),
+        )
+        .await
+        {
+            Either3::First(msg) => Event::Frame(msg),
+            Either3::Second(request) => Event::Store(request),
+            Either3::Third(ra_steps) => Event::Index(ra_steps),
+        };
+        let msg = match event {
+            Event::Frame(msg) => msg,
+            Event::Store(request) => {
                 if let Some(s) = storage.as_mut() {
-                    storage::carry_out(s.store, learner, s.buf, request).await;
+                    let pass = s.index.last_pass();
+                    storage::carry_out(s.store, learner, s.buf, request, pass).await;
+                }
+                continue;
+            }
+            Event::Index(ra_steps) => {
+                if let Some(s) = storage.as_mut() {
+                    if s.index.edge(ra_steps) && s.index.passes() == 1 && !s.parked {
+                        if let Some(origin) =
+                            storage::restore_at_index(s.store, learner, &s.index, ra_steps).await
+                        {
+                            MODEL_ORIGIN.lock(|o| o.set(origin));
+                        }
+                    }
                 }
                 continue;
             }
@@ -87,7 +124,8 @@ pub async fn learning_task(learner: &'static mut Learner<STAGES>, mut storage: O
         if let Some(s) = storage.as_mut() {
             if last_save.elapsed() >= SAVE_EVERY {
                 last_save = Instant::now();
-                storage::save_model(s.store, learner, s.buf, Erase::Defer).await;
+                let pass = s.index.last_pass();
+                storage::save_model(s.store, learner, s.buf, Erase::Defer, pass).await;
             }
         }
     }

@@ -15,6 +15,7 @@ use mkgp_mount::control_loop::port_mount::StoreRequest;
 use mkgp_mount::model::snapshot::{Phase, SnapshotError, FORMAT_VERSION, SNAPSHOT_MAX};
 use mkgp_mount::mount::config::MountConfig;
 use mkgp_mount::mount::learner::Learner;
+use mkgp_mount::mount::worm_index::WormIndex;
 use mkgp_mount::persist::{Erase, LoadError, Park, SaveError, Store};
 use mkgp_mount::port::mount_port::ModelOrigin;
 
@@ -175,6 +176,32 @@ pub async fn restore_model(
     }
 }
 
+/// At the worm-index sensor's first pass, at `ra_steps`: the saved model
+/// again, with the worm's phase from the pass saved with it. `None` (and
+/// the model as it is) if there is no saved pass or model.
+pub async fn restore_at_index(
+    store: &mut FirmwareStore,
+    learner: &mut Learner<STAGES>,
+    index: &WormIndex,
+    ra_steps: i64,
+) -> Option<ModelOrigin> {
+    let saved_pass = store.load_index().await.ok()?;
+    let phase = Phase::Worm {
+        gear_time_offset_s: index.offset_s(saved_pass, ra_steps),
+    };
+    let bytes = store.load_model(FORMAT_VERSION).await.ok()?;
+    match learner.restore(bytes, phase) {
+        Ok(()) => {
+            defmt::info!("model restored at the worm index's first pass");
+            Some(ModelOrigin::Index)
+        }
+        Err(_) => {
+            defmt::warn!("stored model refused at the worm index's pass");
+            None
+        }
+    }
+}
+
 /// The snapshot being written, for the store (`SNAPSHOT_MAX` bytes).
 pub type SnapshotBuffer = [u8; SNAPSHOT_MAX];
 
@@ -185,19 +212,26 @@ pub fn snapshot_buffer() -> Option<&'static mut SnapshotBuffer> {
     SNAPSHOT.try_init([0; SNAPSHOT_MAX])
 }
 
-/// Saves the learned model; `erase` says whether a sector may be erased
-/// (which stops tracking for 1-2 s).
+/// Saves the learned model, and with it the worm index's last pass if
+/// there was one; `erase` says whether a sector may be erased (which stops
+/// tracking for 1-2 s).
 pub async fn save_model(
     store: &mut FirmwareStore,
     learner: &Learner<STAGES>,
     buf: &mut SnapshotBuffer,
     erase: Erase,
+    index_pass: Option<i64>,
 ) {
     match learner.snapshot(buf) {
         Ok(n) => {
             let bytes = buf.get(..n).unwrap_or(&[]);
             let saved = flash_operation(store.save_model(FORMAT_VERSION, bytes, erase)).await;
+            let model_saved = saved.is_ok();
             report("model", saved);
+            if let (true, Some(pass)) = (model_saved, index_pass) {
+                let saved = flash_operation(store.save_index(pass, erase)).await;
+                report("worm index pass", saved);
+            }
         }
         Err(SnapshotError::Placing) => {
             defmt::info!("model not saved yet: its restored data awaits its phase")
@@ -212,10 +246,11 @@ pub async fn carry_out(
     learner: &Learner<STAGES>,
     buf: &mut SnapshotBuffer,
     request: StoreRequest,
+    index_pass: Option<i64>,
 ) {
     match request {
         StoreRequest::Config(config) => save_config(store, config).await,
-        StoreRequest::Model => save_model(store, learner, buf, Erase::Allow).await,
+        StoreRequest::Model => save_model(store, learner, buf, Erase::Allow, index_pass).await,
         StoreRequest::Park(counts) => {
             let park = Park {
                 ra_steps: counts.ra,
@@ -223,7 +258,7 @@ pub async fn carry_out(
             };
             let saved = flash_operation(store.save_park(park, Erase::Allow)).await;
             report("park", saved);
-            save_model(store, learner, buf, Erase::Allow).await;
+            save_model(store, learner, buf, Erase::Allow, index_pass).await;
         }
         StoreRequest::Unpark => {
             let saved = flash_operation(store.clear_park(Erase::Allow)).await;

@@ -37,7 +37,13 @@ pub enum Slot {
     Config = 1,
     Model = 2,
     Park = 3,
+    /// The RA step count of the worm index's last pass when the model was
+    /// saved: with it the next boot's first pass gives the worm's phase.
+    Index = 4,
 }
+
+/// Layout version of the index record (one `i64`, little-endian).
+pub const INDEX_FORMAT: u16 = 1;
 
 /// Bytes of a map key on flash.
 const KEY_LEN: usize = 1;
@@ -178,6 +184,24 @@ impl<F: NorFlash> Store<F> {
     /// are written once).
     pub async fn clear_park(&mut self, erase: Erase) -> Result<(), SaveError<F::Error>> {
         self.save(Slot::Park, PARK_FORMAT, &[], erase).await
+    }
+
+    /// The RA step count of the worm index's pass saved with the model.
+    pub async fn load_index(&mut self) -> Result<i64, LoadError<F::Error>> {
+        let body = self.load(Slot::Index, INDEX_FORMAT).await?;
+        let bytes: [u8; 8] = body.try_into().map_err(|_| LoadError::Malformed)?;
+        Ok(i64::from_le_bytes(bytes))
+    }
+
+    /// Saves the RA step count of the worm index's last pass (with the
+    /// model it goes with).
+    pub async fn save_index(
+        &mut self,
+        ra_steps: i64,
+        erase: Erase,
+    ) -> Result<(), SaveError<F::Error>> {
+        self.save(Slot::Index, INDEX_FORMAT, &ra_steps.to_le_bytes(), erase)
+            .await
     }
 
     /// The body of the newest complete record in `slot`, if its format is
@@ -328,6 +352,24 @@ mod tests {
                 s.load_config().await,
                 Err(LoadError::NothingStored)
             ));
+        });
+    }
+
+    /// The index pass round-trips; a body of another length is malformed.
+    #[test]
+    fn the_index_pass_round_trips() {
+        let mut mem = vec![0xFF; 2 * SECTOR];
+        with_store(&mut mem, async |s| {
+            assert!(matches!(
+                s.load_index().await,
+                Err(LoadError::NothingStored)
+            ));
+            s.save_index(-987_654_321, Erase::Defer).await.unwrap();
+            assert_eq!(s.load_index().await.unwrap(), -987_654_321);
+            s.save(Slot::Index, INDEX_FORMAT, &[1, 2, 3], Erase::Defer)
+                .await
+                .unwrap();
+            assert!(matches!(s.load_index().await, Err(LoadError::Malformed)));
         });
     }
 

@@ -117,6 +117,9 @@ pub enum ModelOrigin {
     /// Restored from a park: the step counters, hence the phase, carried
     /// over.
     Park,
+    /// Restored at the worm-index sensor's first pass: the worm's phase
+    /// from the sensor, the other stages' found again.
+    Index,
 }
 
 impl ModelOrigin {
@@ -126,6 +129,7 @@ impl ModelOrigin {
             ModelOrigin::Cold => "cold",
             ModelOrigin::Relearn => "relearn",
             ModelOrigin::Park => "park",
+            ModelOrigin::Index => "index",
         }
     }
 }
