@@ -143,10 +143,20 @@ pub fn set_interrupt_priority(priority: embassy_stm32::interrupt::Priority) {
 /// Port 1's pins on this board.
 pub type AuxPins = UartPins<chip::AuxUart, chip::AuxTx, chip::AuxRx>;
 
-/// Starts port 1, the plain UART. `None` if it was started before or the
-/// configuration is refused (neither happens with the constants here).
-pub fn start_aux(pins: AuxPins) -> Option<BufferedUart<'static>> {
-    let buffers = uart_buffers!()?;
+/// A UART on `pins` with `buffers`, at [`UART_BAUD`].
+fn start_uart<U, Tx, Rx>(
+    pins: UartPins<U, Tx, Rx>,
+    buffers: &'static mut UartBuffers,
+) -> Option<BufferedUart<'static>>
+where
+    U: usart::Instance,
+    Tx: usart::TxPin<U>,
+    Rx: usart::RxPin<U>,
+    chip::Irqs: embassy_stm32::interrupt::typelevel::Binding<
+        U::Interrupt,
+        usart::BufferedInterruptHandler<U>,
+    >,
+{
     BufferedUart::new(
         pins.uart,
         pins.rx,
@@ -159,6 +169,12 @@ pub fn start_aux(pins: AuxPins) -> Option<BufferedUart<'static>> {
     .ok()
 }
 
+/// Starts port 1, the plain UART. `None` if it was started before or the
+/// configuration is refused (neither happens with the constants here).
+pub fn start_aux(pins: AuxPins) -> Option<BufferedUart<'static>> {
+    start_uart(pins, uart_buffers!()?)
+}
+
 /// Port 0 on the Nucleo: USART2 to the ST-LINK's virtual COM port.
 #[cfg(feature = "stm32f446re")]
 pub type VcpPins = UartPins<peripherals::USART2, peripherals::PA2, peripherals::PA3>;
@@ -166,17 +182,7 @@ pub type VcpPins = UartPins<peripherals::USART2, peripherals::PA2, peripherals::
 /// Starts port 0 on the Nucleo (see [`start_aux`]).
 #[cfg(feature = "stm32f446re")]
 pub fn start_vcp(pins: VcpPins) -> Option<BufferedUart<'static>> {
-    let buffers = uart_buffers!()?;
-    BufferedUart::new(
-        pins.uart,
-        pins.rx,
-        pins.tx,
-        &mut buffers.tx,
-        &mut buffers.rx,
-        chip::Irqs,
-        uart_config(),
-    )
-    .ok()
+    start_uart(pins, uart_buffers!()?)
 }
 
 #[cfg(any(feature = "stm32f411ce", feature = "stm32f407vg"))]

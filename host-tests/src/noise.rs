@@ -53,3 +53,13 @@ mod tests {
         );
     }
 }
+
+/// The iteration multiplier of the randomized tests, from
+/// `MKGP_RANDOMIZED_SCALE` (default and minimum 1): a longer run on demand.
+pub fn randomized_scale() -> u64 {
+    std::env::var("MKGP_RANDOMIZED_SCALE")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1)
+        .max(1)
+}

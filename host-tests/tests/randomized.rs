@@ -9,14 +9,7 @@ use mkgp_mount::mount::st4::{Axis, Line, St4, St4Counters, St4Event};
 use mkgp_mount::testing::SplitMix64;
 use std::f64::consts::PI;
 
-/// The iteration multiplier from `MKGP_RANDOMIZED_SCALE` (default 1).
-fn scale() -> u64 {
-    std::env::var("MKGP_RANDOMIZED_SCALE")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(1)
-        .max(1)
-}
+use host_tests::noise::randomized_scale as scale;
 
 /// Edges of distinct lines at one instant, then a poll at that instant or
 /// not.

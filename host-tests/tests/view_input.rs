@@ -15,13 +15,7 @@ use mkgp_mount::port::reply::Reply;
 use mkgp_mount::port::telemetry::{write, TelemetryFrame};
 use mkgp_mount::testing::SplitMix64;
 
-fn scale() -> u64 {
-    std::env::var("MKGP_RANDOMIZED_SCALE")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(1)
-        .max(1)
-}
+use host_tests::noise::randomized_scale as scale;
 
 /// A valid line as the firmware writes it, and what it says.
 fn valid(rng: &mut SplitMix64, t_ms: u64) -> (Vec<u8>, telemetry::Telemetry) {
