@@ -30,6 +30,16 @@ impl BoxMullerMath for Std {
     }
 }
 
+/// The iteration multiplier of the randomized tests, from
+/// `MKGP_RANDOMIZED_SCALE` (default and minimum 1): a longer run on demand.
+pub fn randomized_scale() -> u64 {
+    std::env::var("MKGP_RANDOMIZED_SCALE")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1)
+        .max(1)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -52,14 +62,4 @@ mod tests {
             "{mean} {var}"
         );
     }
-}
-
-/// The iteration multiplier of the randomized tests, from
-/// `MKGP_RANDOMIZED_SCALE` (default and minimum 1): a longer run on demand.
-pub fn randomized_scale() -> u64 {
-    std::env::var("MKGP_RANDOMIZED_SCALE")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(1)
-        .max(1)
 }
