@@ -154,7 +154,7 @@ pub async fn restore_model(
     } else {
         (Phase::Unknown, ModelOrigin::Relearn)
     };
-    match store.load_model(FORMAT_VERSION).await {
+    match flash_operation(store.load_model(FORMAT_VERSION)).await {
         Ok(bytes) => match learner.restore(bytes, phase) {
             Ok(()) => {
                 defmt::info!("model restored ({} bytes)", bytes.len());
@@ -185,11 +185,14 @@ pub async fn restore_at_index(
     index: &WormIndex,
     ra_steps: i64,
 ) -> Option<ModelOrigin> {
-    let saved_pass = store.load_index().await.ok()?;
+    // Loads may repair a page a power cut left (an erase): counted too.
+    let saved_pass = flash_operation(store.load_index()).await.ok()?;
     let phase = Phase::Worm {
         gear_time_offset_s: index.offset_s(saved_pass, ra_steps),
     };
-    let bytes = store.load_model(FORMAT_VERSION).await.ok()?;
+    let bytes = flash_operation(store.load_model(FORMAT_VERSION))
+        .await
+        .ok()?;
     match learner.restore(bytes, phase) {
         Ok(()) => {
             defmt::info!("model restored at the worm index's first pass");
