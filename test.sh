@@ -2,8 +2,8 @@
 # The project's single test command, for newcomers and CI:   ./test.sh
 #
 #   0. toolchain: rustup target thumbv7em-none-eabihf, llvm-tools, rustfmt,
-#      clippy; flip-link (cargo install); qemu-system-arm and indi-bin
-#      (installed with apt-get when run as root).
+#      clippy; flip-link (cargo install); qemu-system-arm, indi-bin and
+#      chromium (installed with apt-get when run as root).
 #   1. lint:         cargo fmt --check, cargo clippy -D warnings and cargo doc
 #                    (rustdoc warnings are errors) in every crate.
 #   2. unit tests:   the library's own tests, on the host
@@ -85,6 +85,17 @@ if ! command -v indiserver >/dev/null; then
         apt-get install -y --no-install-recommends indi-bin
     else
         echo "indiserver not found: the INDI test will be skipped (Debian/Ubuntu: sudo apt-get install indi-bin)"
+    fi
+fi
+# chromium: guide-sim view's page in a real browser (host-tests/tests/view.rs;
+# skipped with a message without it, unless CI=true).
+if ! command -v chromium >/dev/null; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+        export DEBIAN_FRONTEND=noninteractive
+        apt-get update
+        apt-get install -y --no-install-recommends chromium
+    else
+        echo "chromium not found: the view's browser test will be skipped (Debian/Ubuntu: sudo apt-get install chromium)"
     fi
 fi
 HOST=$(rustc -vV | sed -n 's/^host: //p')
