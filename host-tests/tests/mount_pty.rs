@@ -4,45 +4,19 @@
 //! telemetry line, a model reset, and a clean exit on SIGTERM (the link
 //! removed).
 
+mod common;
+
+use common::process::{guide_sim, Group};
 use std::fs::{File, OpenOptions};
-use std::io::{BufRead, BufReader, ErrorKind, Read, Write};
+use std::io::{ErrorKind, Read, Write};
 use std::os::unix::fs::OpenOptionsExt;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
-use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
-/// Kills the simulator if the test ends early.
-struct Sim(Child);
-
-impl Drop for Sim {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-/// Starts `guide-sim mount --pty link` and waits (at most 20 s) for its
-/// ready line.
-fn start(link: &Path) -> (Sim, String) {
-    let child = Command::new(env!("CARGO_BIN_EXE_guide-sim"))
-        .args(["mount", "--case", "C1", "--no-st4-guider", "--pty"])
-        .arg(link)
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("guide-sim runs");
-    let mut sim = Sim(child);
-    let stdout = sim.0.stdout.take().unwrap();
-    let (tx, rx) = mpsc::channel();
-    std::thread::spawn(move || {
-        let mut line = String::new();
-        let _ = BufReader::new(stdout).read_line(&mut line);
-        let _ = tx.send(line);
-    });
-    let line = rx
-        .recv_timeout(Duration::from_secs(20))
-        .expect("the ready line within 20 s");
-    (sim, line)
+/// Starts `guide-sim mount --pty link` and waits for its ready line.
+fn start(link: &Path) -> (Group, String) {
+    let link = link.to_str().expect("a UTF-8 temporary path");
+    guide_sim(&["mount", "--case", "C1", "--no-st4-guider", "--pty", link])
 }
 
 /// Sends `cmd` and reads until `replies` replies ended by `#` (or, for

@@ -19,11 +19,14 @@
 
 use host_tests::cases;
 use host_tests::data;
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{Read, Write};
 use std::net::TcpListener;
 use std::os::unix::process::CommandExt;
+mod common;
+
+use common::process::{guide_sim, Group};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
@@ -32,41 +35,6 @@ use std::time::{Duration, Instant};
 const PERIOD_TOLERANCE: f64 = 0.02;
 /// How long the stages may take to be found (C8 at speed 50: about 25 s).
 const LEARN_LIMIT: Duration = Duration::from_secs(90);
-
-/// A process group we started, killed on drop.
-struct Group(Child);
-
-impl Drop for Group {
-    fn drop(&mut self) {
-        // SAFETY: kill(2) on the process group of our own child (it leads
-        // it: started with process_group(0)).
-        unsafe { libc::kill(-(self.0.id() as libc::pid_t), libc::SIGKILL) };
-        let _ = self.0.wait();
-    }
-}
-
-/// Starts `args` of guide-sim and waits (at most 20 s) for its ready line.
-fn guide_sim(args: &[&str]) -> (Group, String) {
-    let mut g = Group(
-        Command::new(env!("CARGO_BIN_EXE_guide-sim"))
-            .args(args)
-            .stdout(Stdio::piped())
-            .process_group(0)
-            .spawn()
-            .expect("guide-sim runs"),
-    );
-    let stdout = g.0.stdout.take().unwrap();
-    let (tx, rx) = mpsc::channel();
-    std::thread::spawn(move || {
-        let mut line = String::new();
-        let _ = BufReader::new(stdout).read_line(&mut line);
-        let _ = tx.send(line);
-    });
-    let line = rx
-        .recv_timeout(Duration::from_secs(20))
-        .unwrap_or_else(|_| panic!("guide-sim {args:?}: no ready line within 20 s"));
-    (g, line)
-}
 
 /// The view's page URL from its ready line.
 fn url(ready: &str) -> String {

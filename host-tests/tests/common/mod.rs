@@ -11,3 +11,5 @@ pub use host_tests::data::TraceRow;
 pub fn trace(name: &str) -> Vec<TraceRow> {
     data::load_trace(&data::reference_trace(name)).unwrap_or_else(|e| panic!("{e}"))
 }
+
+pub mod process;
