@@ -64,7 +64,7 @@ pub static LEARNED: Signal<CriticalSectionRawMutex, LearnedFrame> = Signal::new(
 pub static RESET_MODEL: Signal<CriticalSectionRawMutex, ()> = Signal::new();
 
 /// What the ports asked of the store, for the learning task (which owns
-/// it). The port's own queue is as long, so this one has room for it.
+/// it).
 pub static STORE_REQUESTS: Channel<CriticalSectionRawMutex, StoreRequest, 4> = Channel::new();
 
 /// Where the model came from, set by the learning task when it restores
@@ -214,8 +214,13 @@ impl Ports {
         if self.state.take_reset_request() {
             RESET_MODEL.signal(());
         }
-        while let Some(request) = self.state.take_store_request() {
-            // Cannot fail: the port's queue holds no more than this one.
+        // Moved on only while the learning task has room: the rest waits in
+        // the port's queue, and a port that finds that full answers `0`.
+        while !STORE_REQUESTS.is_full() {
+            let Some(request) = self.state.take_store_request() else {
+                break;
+            };
+            // Cannot fail: there is room, and this task is the only sender.
             let _ = STORE_REQUESTS.try_send(request);
         }
         self.state.model_origin = MODEL_ORIGIN.lock(Cell::get);
