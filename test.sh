@@ -76,28 +76,23 @@ if ! command -v qemu-system-arm >/dev/null; then
         die "qemu-system-arm not found: install it (Debian/Ubuntu: sudo apt-get install qemu-system-arm)"
     fi
 fi
-# indi-bin: INDI's indi_lx200generic against guide-sim mount
-# (host-tests/tests/indi.rs; skipped with a message without it, unless CI=true).
-if ! command -v indiserver >/dev/null; then
+# Installs Debian package $2 (for command $1) with apt-get when run as root;
+# otherwise says that the test it is for ($3) will be skipped (under
+# CI=true that test fails instead).
+optional_package() {
+    command -v "$1" >/dev/null && return
     if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
         export DEBIAN_FRONTEND=noninteractive
         apt-get update
-        apt-get install -y --no-install-recommends indi-bin
+        apt-get install -y --no-install-recommends "$2"
     else
-        echo "indiserver not found: the INDI test will be skipped (Debian/Ubuntu: sudo apt-get install indi-bin)"
+        echo "$1 not found: $3 will be skipped (Debian/Ubuntu: sudo apt-get install $2)"
     fi
-fi
-# chromium: guide-sim view's page in a real browser (host-tests/tests/view.rs;
-# skipped with a message without it, unless CI=true).
-if ! command -v chromium >/dev/null; then
-    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
-        export DEBIAN_FRONTEND=noninteractive
-        apt-get update
-        apt-get install -y --no-install-recommends chromium
-    else
-        echo "chromium not found: the view's browser test will be skipped (Debian/Ubuntu: sudo apt-get install chromium)"
-    fi
-fi
+}
+# INDI's indi_lx200generic against guide-sim mount (host-tests/tests/indi.rs).
+optional_package indiserver indi-bin "the INDI test"
+# guide-sim view's page in a real browser (host-tests/tests/view.rs).
+optional_package chromium chromium "the view's browser test"
 HOST=$(rustc -vV | sed -n 's/^host: //p')
 LLVM_BIN="$(rustc --print sysroot)/lib/rustlib/$HOST/bin"
 LLVM_SIZE="$LLVM_BIN/llvm-size"
