@@ -42,6 +42,17 @@ fn url(ready: &str) -> String {
     ready[at..].split_whitespace().next().unwrap().to_string()
 }
 
+/// `guide-sim view` of the port on 127.0.0.1:`port`, on any free port.
+fn view_of_tcp(port: u16) -> (Group, String) {
+    guide_sim(&[
+        "view",
+        "--tcp",
+        &format!("127.0.0.1:{port}"),
+        "--listen",
+        "127.0.0.1:0",
+    ])
+}
+
 /// Runs headless Chromium with `args` on `url` (30 s at most): stdout.
 fn chromium(args: &[&str], url: &str) -> String {
     // A profile of its own: Chromium will not share one between runs.
@@ -350,13 +361,7 @@ fn the_page_tells_bad_input() {
         "~T t_ms=8000 gear_ms=8000 kind=m obs_mas=1 pulse_mas=1 applied_mas=0 pred_mas=0 ff_mas_s=0 learn_pm=2#",
     ];
     let port = fake_port("mkgp-mount", "9.1.0", LINES);
-    let (_view, ready) = guide_sim(&[
-        "view",
-        "--tcp",
-        &format!("127.0.0.1:{port}"),
-        "--listen",
-        "127.0.0.1:0",
-    ]);
+    let (_view, ready) = view_of_tcp(port);
     let page = load_until(&url(&ready), Duration::from_secs(15), |p| {
         p.num("data-frames") == 2.0 && p.num("data-lines-bad") == 2.0
     });
@@ -368,13 +373,7 @@ fn the_page_tells_bad_input() {
 
     // Another product: named, and its telemetry not switched on.
     let port = fake_port("Autostar", "1.0", &[]);
-    let (_view, ready) = guide_sim(&[
-        "view",
-        "--tcp",
-        &format!("127.0.0.1:{port}"),
-        "--listen",
-        "127.0.0.1:0",
-    ]);
+    let (_view, ready) = view_of_tcp(port);
     let page = load_until(&url(&ready), Duration::from_secs(15), |p| {
         p.problems().contains("Autostar")
     });

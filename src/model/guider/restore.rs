@@ -480,17 +480,24 @@ mod tests {
         );
     }
 
-    /// While the phase search is pending the grid holds the restored data
-    /// at no known phase: no snapshot; after it, one.
-    #[test]
-    fn no_snapshot_until_the_phase_is_found() {
-        use crate::model::snapshot::SnapshotError;
+    /// A new guider holding the learned model, restored with its phase
+    /// unknown (the phase search pending).
+    fn restored_with_phase_unknown() -> std::boxed::Box<Guider<f32, 2>> {
         let g = learned();
         let mut buf = [0u8; SNAPSHOT_MAX];
         let n = g.snapshot(&mut buf).unwrap();
         let mut r = std::boxed::Box::new(Guider::<f32, 2>::new(*g.config()));
         r.restore(&Snapshot::parse(&buf[..n], 2).unwrap(), Phase::Unknown)
             .unwrap();
+        r
+    }
+
+    /// While the phase search is pending the grid holds the restored data
+    /// at no known phase: no snapshot; after it, one.
+    #[test]
+    fn no_snapshot_until_the_phase_is_found() {
+        use crate::model::snapshot::SnapshotError;
+        let mut r = restored_with_phase_unknown();
         let mut out = [0u8; SNAPSHOT_MAX];
         run(&mut r, 777.0, 0.0, 0.0, 100.0, 0.0);
         assert_eq!(r.snapshot(&mut out), Err(SnapshotError::Placing));
@@ -503,12 +510,7 @@ mod tests {
     /// known phase, is dropped and learning goes on from the new.
     #[test]
     fn without_a_match_the_saved_data_is_dropped() {
-        let g = learned();
-        let mut buf = [0u8; SNAPSHOT_MAX];
-        let n = g.snapshot(&mut buf).unwrap();
-        let mut r = std::boxed::Box::new(Guider::<f32, 2>::new(*g.config()));
-        r.restore(&Snapshot::parse(&buf[..n], 2).unwrap(), Phase::Unknown)
-            .unwrap();
+        let mut r = restored_with_phase_unknown();
         let mut t = 0.0;
         while t < 240.0 {
             r.observe(t, None, 0.0, 10.0, 2.0);
@@ -516,7 +518,7 @@ mod tests {
         }
         assert!(r.phase_search.is_none());
         assert!(r.grid.len() < 60, "{}", r.grid.len());
-        assert!(r.snapshot(&mut buf).is_ok());
+        assert!(r.snapshot(&mut [0u8; SNAPSHOT_MAX]).is_ok());
     }
 
     #[test]
