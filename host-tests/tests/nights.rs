@@ -1,6 +1,6 @@
 //! The learned model across a power cycle (`guide-sim nights`): the issue's
 //! goals at the tolerances measured. The full table, both starts of night 2
-//! (about 30 s on 2 cores).
+//! (about a minute on 2 cores).
 
 use host_tests::cases;
 use host_tests::data::cases_file;
@@ -38,18 +38,18 @@ fn goals_with_the_gear_moved_while_off() {
         !(r.noise_px == 0.0 && ["C5", "C6", "C7", "C8"].contains(&r.case.as_str()))
             || r.restored_first30 <= 0.75 * r.cold_first30
     });
-    // With the index (the worm's phase; the others' found by the search):
-    // the goal of 1.15 x settled holds on C1 and C4 (the worm and its
-    // harmonics: 1.02, 1.08) and on every row with 1 px noise (up to 1.12,
-    // C8); it does not on the other noise-free rows: 1.21-1.43 (C5).
+    // With the index (the worm's phase; the others' found by the search
+    // a quarter worm period in): the goal of 1.15 x settled holds on C1, C2
+    // and C4 and on every row with 1 px noise (up to 1.12, C7); it does not
+    // on the other noise-free rows: 1.15-1.41 (C7).
     check(&rows, "index > 1.45 x settled", |r| {
         r.restored_index_first30 <= 1.45 * r.settled
     });
     check(
         &rows,
-        "index > 1.15 x settled with noise or worm-only",
+        "index > 1.15 x settled with noise or C1, C2, C4",
         |r| {
-            !(r.noise_px > 0.0 || ["C1", "C4"].contains(&r.case.as_str()))
+            !(r.noise_px > 0.0 || ["C1", "C2", "C4"].contains(&r.case.as_str()))
                 || r.restored_index_first30 <= 1.15 * r.settled
         },
     );
@@ -57,15 +57,13 @@ fn goals_with_the_gear_moved_while_off() {
 
 #[test]
 fn goals_with_the_gear_parked() {
-    let rows = table(&[0.0], Night2Start::Parked);
+    let rows = table(&[0.0, 1.0], Night2Start::Parked);
     check(&rows, "restored worse than cold", |r| {
         r.restored_first30 <= r.cold_first30 && r.restored_index_first30 <= r.cold_first30
     });
-    // Every phase carries over: within 1.11 x settled but on C4 (1.23).
-    check(&rows, "park > 1.25 x settled", |r| {
-        r.restored_index_first30 <= 1.25 * r.settled
-    });
-    check(&rows, "park > 1.12 x settled but C4", |r| {
-        r.case == "C4" || r.restored_index_first30 <= 1.12 * r.settled
+    // Every phase carries over: the goal, within 1.15 x settled on every
+    // row (measured 0.79-1.08).
+    check(&rows, "park > 1.15 x settled", |r| {
+        r.restored_index_first30 <= 1.15 * r.settled
     });
 }

@@ -144,6 +144,9 @@ pub struct Guider<S: Scalar, const N: usize = 2> {
     /// completes, observed by the tracker on every frame).
     worm_peak_s: Option<f64>,
     frames: u32,
+    /// Frames before the model is consulted: [`WARM_UP_FRAMES`], or none
+    /// for a model restored at a known phase (its data is already there).
+    warm_up_frames: u32,
     start_time: f64,
     last_time: f64,
     /// The time of a held frame that did not continue the clock (see
@@ -214,6 +217,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         uninit_field!(slot, discovery).write(Discovery::new(seeds));
         uninit_field!(slot, worm_peak_s).write(None);
         uninit_field!(slot, frames).write(0);
+        uninit_field!(slot, warm_up_frames).write(WARM_UP_FRAMES);
         uninit_field!(slot, start_time).write(0.0);
         uninit_field!(slot, last_time).write(0.0);
         uninit_field!(slot, held_time).write(None);
@@ -228,7 +232,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         uninit_field!(slot, faults).write(Faults::default());
         uninit_field!(slot, resume).write(None);
         uninit_field!(slot, phase_search).write(None);
-        // SAFETY: all 25 fields are written.
+        // SAFETY: all 26 fields are written.
         unsafe { slot.assume_init_mut() }
     }
 
@@ -241,6 +245,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         self.discovery.clear();
         self.gates[1..].fill(0.0);
         self.frames = 0;
+        self.warm_up_frames = WARM_UP_FRAMES;
         self.sum_control = 0.0;
         self.recent_controls = [S::ZERO; 2];
         self.last_prediction_end = None;
@@ -430,7 +435,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         self.last_prediction_end = Some(timestamp);
         self.blend = 0.0;
         let mut prediction = None;
-        if self.frames >= WARM_UP_FRAMES {
+        if self.frames >= self.warm_up_frames {
             let now = time_s - self.start_time;
             let failed = self.track_and_fit(now + 0.5 * dt, timestamp);
             self.prediction = self.predict(now, dt);
@@ -448,7 +453,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         let timestamp = self.timestamp(time_s);
         let mut control = S::ZERO;
         self.blend = 0.0;
-        if self.frames >= WARM_UP_FRAMES
+        if self.frames >= self.warm_up_frames
             && timestamp > self.config.periods_for_inference * self.trackers[0].period_s
         {
             let now = time_s - self.start_time;
@@ -611,7 +616,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             self.discovery.step(&mut self.trackers, &mut self.gates);
         }
         let periods = self.trackers.map(|t| t.period_s);
-        self.kernel = Kernel::new(&periods, &self.gates);
+        self.kernel = Kernel::new(&periods, &self.fit_gates());
         let failed = self
             .gp
             .infer(&self.grid, &self.kernel, centre - origin, &mut self.scratch)
@@ -657,14 +662,14 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     }
 
     fn blend_weight_at(&self, timestamp: f64) -> f64 {
-        if self.frames < WARM_UP_FRAMES {
+        if self.frames < self.warm_up_frames {
             return 0.0;
         }
         self.data_ramp(timestamp) * self.convergence()
     }
 
     fn progress_at(&self, timestamp: f64) -> f64 {
-        if self.frames < WARM_UP_FRAMES {
+        if self.frames < self.warm_up_frames {
             return 0.0;
         }
         let ramp = self.data_ramp(timestamp);

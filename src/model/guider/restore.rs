@@ -34,6 +34,10 @@ const PLACEMENT_MAX_STEPS: f64 = 4096.0;
 /// Worm periods of new data the phase search waits for (measured against
 /// 0.3 and 1: docs/model.md, "Snapshot and restore").
 const PHASE_SEARCH_PERIODS: f64 = 0.5;
+/// The same with the worm's phase known (an index): fewer candidates to
+/// tell apart, and until the search the other stages are left out of the
+/// fit (measured against 0.35 and 0.5 on `guide-sim nights`; docs/model.md).
+const WORM_PHASE_SEARCH_PERIODS: f64 = 0.25;
 /// Phase error per second of gap between the saved data and the first new
 /// frame, s/s: the relative error of a tracked period (C5 after 8,000 s in
 /// `f32`: 432.23 s for 432 s, 5e-4).
@@ -66,7 +70,8 @@ enum Place {
 }
 
 /// The new data starts at this held cell; the phase search runs once
-/// [`PHASE_SEARCH_PERIODS`] of it are in.
+/// [`PHASE_SEARCH_PERIODS`] of it are in ([`WORM_PHASE_SEARCH_PERIODS`]
+/// with the worm's phase known).
 #[derive(Clone, Copy, Debug)]
 pub(super) struct PhaseSearch {
     new_from: usize,
@@ -176,6 +181,10 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             });
             return self.grid.open_cell_end();
         }
+        // Placed at a known phase, the restored data predicts from this
+        // frame on: no warm-up (its 20 s of the guider alone were a fifth
+        // of the excess over settled of a parked night's first 30 min).
+        self.warm_up_frames = 0;
         let at = self.placement(time_s - resume.grid_zero_s, resume.place == Place::Worm);
         let periods = self.trackers.map(|t| t.period_s);
         self.kernel = Kernel::new(&periods, &self.gates);
@@ -199,19 +208,37 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
 
     /// Whether the model must wait for the phase search (the restored data
     /// is not placed yet: no prediction); runs the search when
-    /// [`PHASE_SEARCH_PERIODS`] of new data are in. Called before each fit.
+    /// [`PHASE_SEARCH_PERIODS`] (or [`WORM_PHASE_SEARCH_PERIODS`]) of new
+    /// data are in. Called before each fit.
     pub(super) fn phase_search_pending(&mut self) -> bool {
         let Some(search) = self.phase_search else {
             return false;
         };
         let worm_cells = libm::ceil(self.trackers[0].period_s / CELL_S);
         let new_cells = self.grid.len().saturating_sub(search.new_from);
-        if (new_cells as f64) < PHASE_SEARCH_PERIODS * worm_cells && self.grid.len() < GRID_CELLS {
+        let wait = if search.blocks {
+            PHASE_SEARCH_PERIODS
+        } else {
+            WORM_PHASE_SEARCH_PERIODS
+        };
+        if (new_cells as f64) < wait * worm_cells && self.grid.len() < GRID_CELLS {
             return search.blocks;
         }
         self.phase_search = None;
         self.search_phase(search.new_from, !search.blocks);
         false
+    }
+
+    /// The gates the fit uses: the stages' own, but while restored data
+    /// waits for the phase search with only the worm's phase known, the
+    /// worm's alone (the other stages' saved data lies at a wrong phase,
+    /// and would predict them wrongly rather than not at all).
+    pub(super) fn fit_gates(&self) -> [f64; N] {
+        let mut gates = self.gates;
+        if self.phase_search.is_some() {
+            gates[1..].fill(0.0);
+        }
+        gates
     }
 
     /// The phase search over the saved data (held cells `..saved`) and the
@@ -478,6 +505,43 @@ mod tests {
             u < 0.55 * c && far_u < 0.55 * far_c,
             "{u} {c} {far_u} {far_c}"
         );
+    }
+
+    /// Restored at a known phase, the model predicts from the first frame
+    /// (a cold one only after its warm-up); with only the worm's phase
+    /// known, the fit leaves the other stages out until the search has
+    /// placed them.
+    #[test]
+    fn a_placed_model_needs_no_warm_up_and_the_worm_alone_waits_for_the_search() {
+        let g = learned();
+        let mut buf = [0u8; SNAPSHOT_MAX];
+        let n = g.snapshot(&mut buf).unwrap();
+        let snapshot = Snapshot::parse(&buf[..n], 2).unwrap();
+        let first_frame = |phase: Option<Phase>| {
+            let mut r = std::boxed::Box::new(Guider::<f32, 2>::new(*g.config()));
+            if let Some(phase) = phase {
+                r.restore(&snapshot, phase).unwrap();
+            }
+            let ff = r.observe(0.0, Some(gear(8000.0)), 0.0, 10.0, 2.0) as f64;
+            (ff, r)
+        };
+        // The first frame has no interval: its gear time is its own.
+        let truth = gear(8002.0) - gear(8000.0);
+        let (ff, _) = first_frame(Some(Phase::Known {
+            gear_time_offset_s: 8000.0,
+        }));
+        assert!((ff - truth).abs() < 0.1 * truth.abs(), "{ff} vs {truth}");
+        assert_eq!(first_frame(None).0, 0.0);
+        let (ff, mut worm) = first_frame(Some(Phase::Worm {
+            gear_time_offset_s: 8000.0 + 432.0,
+        }));
+        assert!(ff != 0.0);
+        assert_eq!(worm.fit_gates()[1], 0.0);
+        // A quarter worm period (108 s) and a frame.
+        run(&mut worm, 8000.0, 0.0, 2.0, 120.0, 0.0);
+        assert!(worm.phase_search.is_none());
+        assert_eq!(worm.fit_gates(), worm.gates);
+        assert!(worm.gates[1] > 0.5);
     }
 
     /// A new guider holding the learned model, restored with its phase
