@@ -32,11 +32,7 @@ pub fn table_chart(rows: &[TableRow], note: &str) -> String {
             levels.push(r.noise_px);
         }
     }
-    let max = rows
-        .iter()
-        .flat_map(bars)
-        .fold(0.0f64, f64::max)
-        .max(1e-9);
+    let max = rows.iter().flat_map(bars).fold(0.0f64, f64::max).max(1e-9);
     let top = (max * 1.15 * 10.0).ceil() / 10.0;
     let (bar_w, gap, left, panel_h, panel_gap, head) = (12.0, 16.0, 60.0, 220.0, 70.0, 70.0);
     let ncases = rows.iter().filter(|r| r.noise_px == levels[0]).count();

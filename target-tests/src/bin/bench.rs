@@ -132,8 +132,14 @@ fn main() -> ! {
     let counts = COUNTS.init([0; ACTIVE]);
     run(GUIDER_1.init(Guider::new(GuiderConfig::default())), counts);
     let medians = [
-        (2, run(GUIDER_2.init(Guider::new(GuiderConfig::default())), counts)),
-        (3, run(GUIDER_3.init(Guider::new(GuiderConfig::default())), counts)),
+        (
+            2,
+            run(GUIDER_2.init(Guider::new(GuiderConfig::default())), counts),
+        ),
+        (
+            3,
+            run(GUIDER_3.init(Guider::new(GuiderConfig::default())), counts),
+        ),
     ];
     let states = [
         core::mem::size_of::<Guider<f32, 2>>(),
