@@ -24,7 +24,7 @@
 #                    for the stack), or if its panic call sites (counted in
 #                    the disassembly) exceed PANIC_SITES_MAX.
 #   5. bench:        cd host-tests && cargo run --release --bin guide-sim --
-#                    bench --csv   (prints the figures; fails if N = 2 exceeds
+#                    bench --csv   (prints the figures; fails if N = 2 or 3 exceeds
 #                    1,000,000 instructions per frame (median) or 64 KiB of
 #                    state; about a minute, mostly QEMU)
 #
@@ -235,7 +235,7 @@ total=$(tail -n1 <<<"$sites" | awk '{print $2}')
 
 # --- 5. bench -----------------------------------------------------------------
 # The figures, and the Cortex-M4 goals asserted by the bench binary: host
-# time per frame (f64/f32, 1 and 2 stages, printed only) and, from
+# time per frame (f64/f32, 1, 2 and 3 stages, printed only) and, from
 # target-tests' bench binary in QEMU, instructions per frame of the f32
 # guider on the Cortex-M4 and the bytes of model state.
 if [ "$HAVE_HOST_TESTS" = 1 ]; then

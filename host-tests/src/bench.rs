@@ -2,7 +2,7 @@
 //!
 //! Host part: the paper's closed loop ([`closed_loop::run`]) on case C8 with
 //! 1 px noise (seed 1), timing every `Guider::frame` call with
-//! [`Instant`], for `f64` and `f32` and 1 and 2 stages, all in one process.
+//! [`Instant`], for `f64` and `f32` and 1, 2 and 3 stages, all in one process.
 //! The loop computes in `f64`; the `f32` guider gets its arguments converted
 //! before the timed call.
 //!
@@ -35,9 +35,10 @@ pub const NOISE: Noise = Noise::Gaussian {
 };
 /// Frames with t >= this (s) are measured.
 pub const ACTIVE_FROM_S: f64 = 1200.0;
-/// Goal: median instructions per frame on the Cortex-M4 with 2 stages.
+/// Goal: median instructions per frame on the Cortex-M4 with 2 and with 3
+/// stages.
 pub const INSTRUCTIONS_GOAL: u64 = 1_000_000;
-/// Goal: bytes of model state (`Guider<f32, 2>`).
+/// Goal: bytes of model state (`Guider<f32, 2>` and `Guider<f32, 3>`).
 pub const STATE_GOAL_BYTES: usize = 64 * 1024;
 /// The CSV header of `guide-sim bench --csv`.
 pub const CSV_HEADER: &str = "platform,precision,stages,us_per_frame_median,us_per_frame_p90,instructions_per_frame_median,instructions_per_frame_max,state_bytes";
@@ -136,13 +137,15 @@ pub fn host_row<S: Scalar, const N: usize>(case: &Case, precision: &'static str)
     }
 }
 
-/// The four host rows: f64 and f32, 1 and 2 stages, in one process.
+/// The six host rows: f64 and f32, 1, 2 and 3 stages, in one process.
 pub fn host_rows(case: &Case) -> Vec<BenchRow> {
     vec![
         host_row::<f64, 1>(case, "f64"),
         host_row::<f64, 2>(case, "f64"),
+        host_row::<f64, 3>(case, "f64"),
         host_row::<f32, 1>(case, "f32"),
         host_row::<f32, 2>(case, "f32"),
+        host_row::<f32, 3>(case, "f32"),
     ]
 }
 
@@ -182,7 +185,7 @@ pub fn target_tests_dir() -> PathBuf {
 /// Outcome of the Cortex-M4 part.
 #[derive(Debug)]
 pub enum TargetRun {
-    /// The `cortex-m4` rows, 1 and 2 stages.
+    /// The `cortex-m4` rows, 1, 2 and 3 stages.
     Rows(Vec<BenchRow>),
     /// qemu-system-arm or the thumbv7em target is missing: why.
     Unavailable(String),
@@ -245,9 +248,9 @@ pub fn run_target(dir: &Path) -> TargetRun {
     }
     let mut rows: Vec<BenchRow> = stdout.lines().filter_map(parse_target_line).collect();
     rows.sort_by_key(|r| r.stages);
-    if rows.iter().map(|r| r.stages).collect::<Vec<_>>() != [1, 2] {
+    if rows.iter().map(|r| r.stages).collect::<Vec<_>>() != [1, 2, 3] {
         return TargetRun::Failed(format!(
-            "the QEMU bench printed no result lines for stages 1 and 2; its output:\n{stdout}"
+            "the QEMU bench printed no result lines for stages 1, 2 and 3; its output:\n{stdout}"
         ));
     }
     TargetRun::Rows(rows)

@@ -1,6 +1,6 @@
-//! The one place that decides what the `ppec` and `mkgp` columns run: the
-//! library's Gaussian-process guider ([`crate::gp::GpAlgorithm`]) with 1
-//! periodic stage (PPEC) or 2 (MKGP).
+//! The one place that decides what the `ppec`, `mkgp` and `mkgp3` columns
+//! run: the library's Gaussian-process guider ([`crate::gp::GpAlgorithm`])
+//! with 1 periodic stage (PPEC), 2 (MKGP) or 3 (MKGP3).
 
 use crate::gp::GpAlgorithm;
 use crate::guide_algorithm::GuideAlgorithm;
@@ -12,6 +12,8 @@ pub enum Model {
     Ppec,
     /// Two periodic stages: the paper's multi-kernel model.
     Mkgp,
+    /// Three periodic stages: a worm, a spur gear and a motor gear.
+    Mkgp3,
 }
 
 impl Model {
@@ -19,6 +21,7 @@ impl Model {
         match self {
             Model::Ppec => 1,
             Model::Mkgp => 2,
+            Model::Mkgp3 => 3,
         }
     }
 }
@@ -33,5 +36,6 @@ pub fn algorithm(
     match model {
         Model::Ppec => Box::new(GpAlgorithm::<1>::new(control_gain, prediction_gain)),
         Model::Mkgp => Box::new(GpAlgorithm::<2>::new(control_gain, prediction_gain)),
+        Model::Mkgp3 => Box::new(GpAlgorithm::<3>::new(control_gain, prediction_gain)),
     }
 }

@@ -3,11 +3,19 @@
 use crate::table::TableRow;
 use std::fmt::Write;
 
-const COLOURS: [(&str, &str); 3] = [
+const COLOURS: [(&str, &str); 4] = [
     ("reactive", "#9e9e9e"),
     ("ppec", "#1f77b4"),
     ("mkgp", "#d62728"),
+    ("mkgp3", "#ff7f0e"),
 ];
+/// Bars per case.
+const BARS: f64 = COLOURS.len() as f64;
+
+/// The bars of a row, in the order of [`COLOURS`].
+fn bars(r: &TableRow) -> [f64; 4] {
+    [r.reactive, r.ppec, r.mkgp, r.mkgp3]
+}
 
 fn esc(s: &str) -> String {
     s.replace('&', "&amp;")
@@ -15,7 +23,7 @@ fn esc(s: &str) -> String {
         .replace('>', "&gt;")
 }
 
-/// Bars of the reactive, ppec and mkgp residuals, one panel per noise level,
+/// Bars of the reactive, ppec, mkgp and mkgp3 residuals, one panel per noise level,
 /// the open-loop RMS written above each case. `note` goes under the title.
 pub fn table_chart(rows: &[TableRow], note: &str) -> String {
     let mut levels: Vec<f64> = Vec::new();
@@ -24,15 +32,11 @@ pub fn table_chart(rows: &[TableRow], note: &str) -> String {
             levels.push(r.noise_px);
         }
     }
-    let max = rows
-        .iter()
-        .flat_map(|r| [r.reactive, r.ppec, r.mkgp])
-        .fold(0.0f64, f64::max)
-        .max(1e-9);
+    let max = rows.iter().flat_map(bars).fold(0.0f64, f64::max).max(1e-9);
     let top = (max * 1.15 * 10.0).ceil() / 10.0;
     let (bar_w, gap, left, panel_h, panel_gap, head) = (12.0, 16.0, 60.0, 220.0, 70.0, 70.0);
     let ncases = rows.iter().filter(|r| r.noise_px == levels[0]).count();
-    let width = left + ncases as f64 * (3.0 * bar_w + gap) + 20.0;
+    let width = left + ncases as f64 * (BARS * bar_w + gap) + 20.0;
     let height = head + levels.len() as f64 * (panel_h + panel_gap);
     let mut s = String::new();
     let _ = writeln!(
@@ -83,8 +87,8 @@ pub fn table_chart(rows: &[TableRow], note: &str) -> String {
             );
         }
         for (i, r) in rows.iter().filter(|r| r.noise_px == level).enumerate() {
-            let x0 = left + gap / 2.0 + i as f64 * (3.0 * bar_w + gap);
-            for (k, v) in [r.reactive, r.ppec, r.mkgp].into_iter().enumerate() {
+            let x0 = left + gap / 2.0 + i as f64 * (BARS * bar_w + gap);
+            for (k, v) in bars(r).into_iter().enumerate() {
                 let h = v * scale;
                 let _ = writeln!(
                     s,
@@ -96,7 +100,7 @@ pub fn table_chart(rows: &[TableRow], note: &str) -> String {
                     COLOURS[k].0
                 );
             }
-            let cx = x0 + 1.5 * bar_w;
+            let cx = x0 + BARS / 2.0 * bar_w;
             let _ = writeln!(
                 s,
                 r#"<text x="{cx:.1}" y="{:.1}" text-anchor="middle">{}</text>"#,

@@ -1,5 +1,6 @@
 //! The paper's table: residual RMS per case and noise level for the open
-//! loop, the reactive guide algorithm (hysteresis 0.6), PPEC and MKGP.
+//! loop, the reactive guide algorithm (hysteresis 0.6), PPEC, MKGP (two
+//! stages) and MKGP3 (three).
 
 use crate::cases::Case;
 use crate::closed_loop::{self, Noise};
@@ -18,6 +19,7 @@ pub struct TableRow {
     pub reactive: f64,
     pub ppec: f64,
     pub mkgp: f64,
+    pub mkgp3: f64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -53,12 +55,17 @@ pub fn compute(cases: &[Case]) -> Vec<TableRow> {
     rows.into_par_iter()
         .map(|(case, noise_px)| {
             let column = |c| rms(case, noise_px, c);
-            let (reactive, (ppec, mkgp)) = rayon::join(
-                || column(Column::Reactive),
+            let ((reactive, ppec), (mkgp, mkgp3)) = rayon::join(
                 || {
                     rayon::join(
+                        || column(Column::Reactive),
                         || column(Column::Model(Model::Ppec)),
+                    )
+                },
+                || {
+                    rayon::join(
                         || column(Column::Model(Model::Mkgp)),
+                        || column(Column::Model(Model::Mkgp3)),
                     )
                 },
             );
@@ -69,6 +76,7 @@ pub fn compute(cases: &[Case]) -> Vec<TableRow> {
                 reactive,
                 ppec,
                 mkgp,
+                mkgp3,
             }
         })
         .collect()

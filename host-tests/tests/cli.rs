@@ -37,7 +37,7 @@ fn table_csv() {
     assert!(o.status.success(), "{}", stderr(&o));
     let out = stdout(&o);
     let lines: Vec<&str> = out.lines().collect();
-    assert_eq!(lines[0], "case,noise_px,open_loop,reactive,ppec,mkgp");
+    assert_eq!(lines[0], "case,noise_px,open_loop,reactive,ppec,mkgp,mkgp3");
     assert_eq!(lines.len(), 3, "{out}");
     assert!(lines[1].starts_with("C1,0,8.634,0.332,"), "{out}");
     assert!(lines[2].starts_with("C1,1,8.634,0.705,"), "{out}");

@@ -3,6 +3,8 @@
 //!   figure (on C4 noise-free, where INDIGO's own single-kernel code gives
 //!   0.194 with these case definitions against the paper's 0.181, at most
 //!   1.02 x INDIGO's figure), and on C1 and C4 MKGP within 0.005 px of PPEC;
+//! - `guide-sim table`: MKGP3 (three stages) at most [`MKGP3_OVER_MKGP_PX`]
+//!   above MKGP on every cell (measured: equal to 0.001 px);
 //! - `guide-sim table`: every PPEC cell within [`PPEC_TOLERANCE_PX`] of
 //!   INDIGO's single-kernel figure (docs/reference.md), except those of
 //!   [`PPEC_EXCEPTIONS`];
@@ -51,6 +53,11 @@ const PPEC_TOLERANCE_PX: f64 = 0.002;
 /// the difference measured, so that it cannot grow unnoticed:
 /// (case, noise px, bound px).
 const PPEC_EXCEPTIONS: [(&str, f64, f64); 1] = [("C8", 1.0, 0.0022)];
+
+/// How far MKGP3 may lie above MKGP on C1-C8: the table prints 0.001 px,
+/// and every cell measured equal at that resolution (docs/model.md, "Three
+/// stages"); a spurious third stage that costs the second shows here.
+const MKGP3_OVER_MKGP_PX: f64 = 0.001;
 
 /// INDIGO's PPEC gain over hysteresis on logs 01-05, percent.
 const INDIGO_GAIN_PCT: [f64; 5] = [0.27, 0.10, 12.26, 8.31, 2.22];
@@ -106,6 +113,12 @@ fn table_meets_the_paper() {
             failures.push(format!(
                 "{} noise {}: {:.4} > {:.4}",
                 r.case, r.noise_px, r.mkgp, bar
+            ));
+        }
+        if r.mkgp3 > r.mkgp + MKGP3_OVER_MKGP_PX {
+            failures.push(format!(
+                "{} noise {}: MKGP3 {:.4} above MKGP {:.4}",
+                r.case, r.noise_px, r.mkgp3, r.mkgp
             ));
         }
         if (r.case == "C1" || r.case == "C4") && (r.mkgp - r.ppec).abs() > 0.005 {

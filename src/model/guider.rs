@@ -177,6 +177,8 @@ pub struct Guider<S: Scalar, const N: usize = 2> {
 // The model-state budget (docs/reference.md, Goals): the board's 128 KiB of
 // RAM holds it twice at start-up, the static and its temporary on the stack.
 const _: () = assert!(core::mem::size_of::<Guider<f32, 2>>() <= 64 * 1024);
+// The same budget for three stages (issue 10).
+const _: () = assert!(core::mem::size_of::<Guider<f32, 3>>() <= 64 * 1024);
 
 /// Measurement variance from the star's SNR (single-kernel model).
 fn measurement_variance(snr: f64) -> f64 {

@@ -206,10 +206,17 @@ impl<const N: usize> Discovery<N> {
             return;
         }
         for s in 1..N {
+            // A found stage follows its line past the stages after it that
+            // carry no weight yet: with three stages, an ungated third
+            // stage wandering over noise peaks otherwise notches the
+            // second's line and closes its gate (C6, docs/model.md).
+            let following = self.stages[s].found;
             let mut known = [0.0; N];
             let mut n_known = 0;
             for (k, t) in trackers.iter().enumerate() {
-                if k != s && (k == 0 || self.stages[k].found) {
+                let stage = &self.stages[k];
+                let weighs = k < s || !following || stage.ratio >= GATE_OFF;
+                if k != s && (k == 0 || (stage.found && weighs)) {
                     known[n_known] = t.period_s;
                     n_known += 1;
                 }
