@@ -21,16 +21,16 @@ use crate::model::numeric::scalar::Scalar;
 
 /// Frames a mean square averages over (about 7 minutes at 2 s frames; a
 /// worm period or more of a modest worm, so that its slopes both ways count).
-const SCORE_FRAMES: f64 = 200.0;
+const SCORE_FRAMES: f64 = 1000.0;
 /// Weight gained per frame while the model's shadow is better by
 /// [`MARGIN`]: from none to full in 100 frames.
-const RISE_PER_FRAME: f64 = 0.01;
+const RISE_PER_FRAME: f64 = 0.1;
 /// Weight lost per frame while the model's shadow is worse: a model that
 /// stops helping loses its weight faster than it earned it.
-const FALL_PER_FRAME: f64 = 0.02;
+const FALL_PER_FRAME: f64 = 0.05;
 /// The model's shadow must beat the reactive one by this fraction of its
 /// mean square before the weight rises (the hysteresis of the decision).
-const MARGIN: f64 = 0.02;
+const MARGIN: f64 = 0.001;
 
 /// The control law both shadows and the guider share.
 #[derive(Clone, Copy, Debug)]
@@ -79,8 +79,9 @@ impl Shadow {
         input
     }
 
-    fn score(&mut self, input: f64) {
-        self.mean_square += (input * input - self.mean_square) / SCORE_FRAMES;
+    /// Add a measurement to the mean square, the `frames`th scored.
+    fn score(&mut self, input: f64, frames: f64) {
+        self.mean_square += (input * input - self.mean_square) / frames.min(SCORE_FRAMES);
     }
 }
 
@@ -90,17 +91,22 @@ impl Shadow {
 pub(super) struct Trust {
     reactive: Shadow,
     model: Shadow,
+    /// Frames scored: those where the model's shadow differed from the
+    /// reactive one (until then both score the same, which would only
+    /// dilute the comparison).
+    scored: f64,
     weight: f64,
 }
 
 impl Trust {
+    /// Full weight until the model's shadow is measured worse: the
+    /// reference blend's own ramp governs the start, and the short PHD2
+    /// logs lose their gain to any slower start (docs/model.md).
     pub fn new() -> Self {
-        Self::default()
-    }
-
-    /// The weight of the reference blend, 0..=1.
-    pub fn weight(&self) -> f64 {
-        self.weight
+        Self {
+            weight: 1.0,
+            ..Self::default()
+        }
     }
 
     /// A frame with a measurement: `gear` is the reconstructed gear error
@@ -117,11 +123,18 @@ impl Trust {
         let reactive = self.reactive.step(gear, law, None);
         let model = self.model.step(gear, law, prediction);
         if !(gear.is_finite() && reactive.is_finite() && model.is_finite()) {
-            *self = Self::default();
+            *self = Self {
+                weight: 0.0,
+                ..Self::default()
+            };
             return 0.0;
         }
-        self.reactive.score(reactive);
-        self.model.score(model);
+        if prediction.is_none_or(|(_, blend)| !(blend > 0.0)) {
+            return self.weight;
+        }
+        self.scored += 1.0;
+        self.reactive.score(reactive, self.scored);
+        self.model.score(model, self.scored);
         let (r, m) = (self.reactive.mean_square, self.model.mean_square);
         if m < (1.0 - MARGIN) * r {
             self.weight += RISE_PER_FRAME;
