@@ -28,6 +28,9 @@ const RISE_PER_FRAME: f64 = 0.1;
 /// Weight lost per frame while the model's shadow is worse: a model that
 /// stops helping loses its weight faster than it earned it.
 const FALL_PER_FRAME: f64 = 0.05;
+/// Frames scored before the comparison may move the weight: fewer measure
+/// the noise more than the model (PHD2 log 04 lost trust at 100).
+const MIN_SCORED: f64 = 200.0;
 /// The model's shadow must beat the reactive one by this fraction of its
 /// mean square before the weight rises (the hysteresis of the decision).
 const MARGIN: f64 = 0.001;
@@ -136,6 +139,9 @@ impl Trust {
         self.reactive.score(reactive, self.scored);
         self.model.score(model, self.scored);
         let (r, m) = (self.reactive.mean_square, self.model.mean_square);
+        if self.scored < MIN_SCORED {
+            return self.weight;
+        }
         if m < (1.0 - MARGIN) * r {
             self.weight += RISE_PER_FRAME;
         } else if m > r {
