@@ -29,7 +29,8 @@ const RISE_PER_FRAME: f64 = 0.1;
 /// stops helping loses its weight faster than it earned it.
 const FALL_PER_FRAME: f64 = 0.05;
 /// Frames scored before the comparison may move the weight: fewer measure
-/// the noise more than the model (PHD2 log 04 lost trust at 100).
+/// the noise more than the model (PHD2 log 04 lost its gain over INDIGO
+/// when the weight moved from the first scored frame).
 const MIN_SCORED: f64 = 200.0;
 /// The model's shadow must beat the reactive one by this fraction of its
 /// mean square before the weight rises (the hysteresis of the decision).
