@@ -25,6 +25,9 @@ use crate::model::spectral::period::PeriodTracker;
 use crate::model::spectral::spectrum::{Spectrum, NYQUIST_BIN};
 
 mod restore;
+mod trust;
+
+use trust::{Law, Trust};
 
 /// Frames of proportional control without learning after a dither.
 pub const DITHER_FRAMES: u8 = 10;
@@ -166,6 +169,9 @@ pub struct Guider<S: Scalar, const N: usize = 2> {
     dither_frames_left: u8,
     learning_progress: f64,
     blend: f64,
+    /// With more than one stage, the weight of the reference blend as the
+    /// model has earned it by measurement (`trust`).
+    trust: Trust,
     faults: Faults,
     /// A restored grid waiting for the first frame to be placed
     /// (`restore`).
@@ -231,6 +237,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         uninit_field!(slot, dither_frames_left).write(0);
         uninit_field!(slot, learning_progress).write(0.0);
         uninit_field!(slot, blend).write(0.0);
+        uninit_field!(slot, trust).write(Trust::new());
         uninit_field!(slot, faults).write(Faults::default());
         uninit_field!(slot, resume).write(None);
         uninit_field!(slot, phase_search).write(None);
@@ -256,6 +263,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         self.dither_frames_left = 0;
         self.learning_progress = 0.0;
         self.blend = 0.0;
+        self.trust = Trust::new();
         for t in &mut self.trackers {
             t.disagreement = 1.0;
         }
@@ -327,6 +335,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         if !good {
             return self.dark_step(time_s, time_step);
         }
+        let gear = self.sum_control + input.to_f64();
         let variance = measurement_variance(snr.to_f64());
         let gain = self.config.control_gain;
         let mut hysteresis = gain
@@ -338,6 +347,13 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             hysteresis = S::ZERO;
         }
         let (timestamp, prediction) = self.model_step(time_s, time_step);
+        if N > 1 {
+            let law = self.law();
+            let weight = self
+                .trust
+                .measured(gear, &law, prediction.map(|p| (p, self.blend)));
+            self.blend *= weight;
+        }
         if let Some(prediction) = prediction {
             control += self.config.prediction_gain * prediction;
             // The blend weight is 0 after a failed fit: hysteresis alone.
@@ -468,7 +484,22 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             control = S::ZERO;
         }
         self.learning_progress = self.progress_at(timestamp);
-        self.finish_frame(timestamp, 0.0, DARK_VARIANCE, control)
+        let control = self.finish_frame(timestamp, 0.0, DARK_VARIANCE, control);
+        let [c0, c1] = self.recent_controls;
+        self.trust
+            .follow(self.sum_control, [c0.to_f64(), c1.to_f64()]);
+        control
+    }
+
+    /// The control law of [`frame`](Self::frame), for the shadows of
+    /// `trust`.
+    fn law(&self) -> Law {
+        Law {
+            control_gain: self.config.control_gain.to_f64(),
+            prediction_gain: self.config.prediction_gain.to_f64(),
+            min_move: self.config.min_move.to_f64(),
+            hysteresis: HYSTERESIS,
+        }
     }
 
     /// The time step in 0..=[`MAX_TIME_STEP_S`]; not finite or not
