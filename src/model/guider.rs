@@ -24,10 +24,12 @@ use crate::model::spectral::fft::FFT_LEN;
 use crate::model::spectral::period::PeriodTracker;
 use crate::model::spectral::spectrum::{Spectrum, NYQUIST_BIN};
 
+mod control_law;
 mod restore;
 mod trust;
 
-use trust::{Law, Trust};
+use control_law::Law;
+use trust::Trust;
 
 /// Frames of proportional control without learning after a dither.
 pub const DITHER_FRAMES: u8 = 10;
@@ -337,32 +339,19 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         }
         let gear = self.sum_control + input.to_f64();
         let variance = measurement_variance(snr.to_f64());
-        let gain = self.config.control_gain;
-        let mut hysteresis = gain
-            * (S::from_f64(1.0 - HYSTERESIS) * input
-                + S::from_f64(HYSTERESIS) * self.recent_controls[1]);
-        let mut control = reactive;
-        if input.abs() < self.config.min_move {
-            control = S::ZERO;
-            hysteresis = S::ZERO;
-        }
+        let law = self.law();
         let (timestamp, prediction) = self.model_step(time_s, time_step);
         if N > 1 {
-            let law = self.law();
-            let weight = self
-                .trust
-                .measured(gear, &law, prediction.map(|p| (p, self.blend)));
+            let weight = self.trust.measured(
+                gear,
+                &law.to_f64(),
+                prediction.map(|p| (p.to_f64(), self.blend)),
+            );
             self.blend *= weight;
         }
-        if let Some(prediction) = prediction {
-            control += self.config.prediction_gain * prediction;
-            // The blend weight is 0 after a failed fit: hysteresis alone.
-            let b = S::from_f64(self.blend);
-            control = b * control + (S::ONE - b) * hysteresis;
-        }
-        if !control.is_finite() {
-            control = hysteresis;
-        }
+        // The blend weight is 0 after a failed fit: hysteresis alone.
+        let prediction = prediction.map(|p| (p, S::from_f64(self.blend)));
+        let control = law.control(input, self.recent_controls[1], prediction);
         self.finish_frame(timestamp, input.to_f64(), variance, control)
     }
 
@@ -491,14 +480,13 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         control
     }
 
-    /// The control law of [`frame`](Self::frame), for the shadows of
+    /// The control law of [`frame`](Self::frame) and of the shadows of
     /// `trust`.
-    fn law(&self) -> Law {
+    fn law(&self) -> Law<S> {
         Law {
-            control_gain: self.config.control_gain.to_f64(),
-            prediction_gain: self.config.prediction_gain.to_f64(),
-            min_move: self.config.min_move.to_f64(),
-            hysteresis: HYSTERESIS,
+            control_gain: self.config.control_gain,
+            prediction_gain: self.config.prediction_gain,
+            min_move: self.config.min_move,
         }
     }
 

@@ -17,7 +17,7 @@
 //! the reference blend rises while the model's shadow is measured better by
 //! a margin, falls while it is measured worse, and holds between.
 
-use crate::model::numeric::scalar::Scalar;
+use super::control_law::Law;
 
 /// Frames a mean square averages over (about 7 minutes at 2 s frames; a
 /// worm period or more of a modest worm, so that its slopes both ways count).
@@ -36,16 +36,6 @@ const MIN_SCORED: f64 = 200.0;
 /// mean square before the weight rises (the hysteresis of the decision).
 const MARGIN: f64 = 0.001;
 
-/// The control law both shadows and the guider share.
-#[derive(Clone, Copy, Debug)]
-pub(super) struct Law {
-    pub control_gain: f64,
-    pub prediction_gain: f64,
-    pub min_move: f64,
-    /// Weight of the previous control in the hysteresis term.
-    pub hysteresis: f64,
-}
-
 /// One virtual loop on the reconstructed gear error.
 #[derive(Clone, Copy, Debug, Default)]
 struct Shadow {
@@ -61,20 +51,11 @@ struct Shadow {
 impl Shadow {
     /// One frame: its measurement of `gear`, and its control under `law`
     /// with the reference blend `blend` of `prediction` (none: hysteresis).
-    fn step(&mut self, gear: f64, law: &Law, prediction: Option<(f64, f64)>) -> f64 {
+    fn step(&mut self, gear: f64, law: &Law<f64>, prediction: Option<(f64, f64)>) -> f64 {
         let input = gear - self.applied;
-        let mut control = 0.0;
-        if input.abs() >= law.min_move {
-            let hysteresis = law.control_gain
-                * ((1.0 - law.hysteresis) * input + law.hysteresis * self.controls[1]);
-            control = hysteresis;
-            if let Some((p, blend)) = prediction {
-                let model = law.control_gain * input + law.prediction_gain * p;
-                control = blend * model + (1.0 - blend) * hysteresis;
-            }
-        } else if let Some((p, blend)) = prediction {
-            control = blend * law.prediction_gain * p;
-        }
+        // No prediction: the hysteresis term alone (a blend of 0).
+        let prediction = prediction.or(Some((0.0, 0.0)));
+        let mut control = law.control(input, self.controls[1], prediction);
         if !control.is_finite() {
             control = 0.0;
         }
@@ -117,13 +98,7 @@ impl Trust {
     /// (the guider's controls so far plus its measurement), `prediction`
     /// the model's prediction and the reference blend, if the model was
     /// consulted. Returns the weight for this frame's control.
-    pub fn measured<S: Scalar>(
-        &mut self,
-        gear: f64,
-        law: &Law,
-        prediction: Option<(S, f64)>,
-    ) -> f64 {
-        let prediction = prediction.map(|(p, b)| (p.to_f64(), b));
+    pub fn measured(&mut self, gear: f64, law: &Law<f64>, prediction: Option<(f64, f64)>) -> f64 {
         let reactive = self.reactive.step(gear, law, None);
         let model = self.model.step(gear, law, prediction);
         if !(gear.is_finite() && reactive.is_finite() && model.is_finite()) {
