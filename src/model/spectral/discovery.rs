@@ -7,7 +7,11 @@
 //! `[4 cells, 1.2 P_0]` or around a user-supplied seed. A candidate is also
 //! refused until the data spans [`RESOLUTION_BEATS`] beat periods against
 //! every known stage: before that, a peak near a known one is only that
-//! peak's main lobe. A found stage then follows its peak in a band around
+//! peak's main lobe. A peak in a notch or the guard around a harmonic (or
+//! multiple) of a known stage is admitted once the data spans
+//! [`HARMONIC_BEATS`] beat periods against that harmonic: it is then a line
+//! of its own, a gear a few percent off the worm's k-th harmonic, not the
+//! harmonic itself. A found stage then follows its peak in a band around
 //! its own period; its evidence gate opens with the peak's amplitude
 //! relative to the worm's.
 
@@ -37,6 +41,12 @@ pub const FOLLOW_WIDTH: f64 = 0.1;
 /// Beat periods of data required against every known stage (resolution
 /// guard). Measured on C2 and C8: see `docs/model.md`.
 pub const RESOLUTION_BEATS: f64 = 1.5;
+/// Beat periods of data against a harmonic `k P` or `P / k` (k >= 2) of a
+/// known period from which a peak inside its notch or guard counts as a
+/// line of its own. A true harmonic sits at the harmonic itself, whatever
+/// the span, so it stays refused. Measured on the near-harmonic cases H1-H11:
+/// see `docs/model.md`.
+pub const HARMONIC_BEATS: f64 = 1.5;
 /// A found stage that is not yet fully gated in moves to twice or half its
 /// period where that peak has this many times the power of its own, if the
 /// new period is below this many worm periods. Measured on C5, C6 and the
@@ -62,23 +72,59 @@ pub fn gate(ratio: f64) -> f64 {
     ((ratio - GATE_OFF) / (GATE_FULL - GATE_OFF)).clamp(0.0, 1.0)
 }
 
-/// Whether a peak at `period` lies in the notch of a known period.
-pub fn notched(period: f64, known: &[f64]) -> bool {
-    let near = |centre: f64| (centre / period - 1.0).abs() <= NOTCH_WIDTH;
-    known.iter().any(|&p| {
-        (1..=NOTCH_MULTIPLES).any(|k| near(p * k as f64))
-            || (2..=NOTCH_DIVISIONS).any(|k| near(p / k as f64))
+/// Whether `span_s` of data leaves a peak at `period` unresolved from the
+/// `k`-th multiple or division (`harmonic`) of a known period `p` or of its
+/// line `line` as measured in this spectrum. Both: a tracked period lags
+/// its line, and early on a true harmonic of the line sits beats away from
+/// the tracked period's harmonic (C8's 144 s, with the 288 s worm tracked
+/// some percent off, was taken for a stage). The known period itself
+/// (k = 1) is never resolved here: a line that close to a stage's own is
+/// the resolution guard's matter.
+fn unresolved(
+    period: f64,
+    (p, line): (f64, f64),
+    k: u32,
+    harmonic: impl Fn(f64, f64) -> f64,
+    span_s: f64,
+) -> bool {
+    let beats = |centre: f64| span_s * (1.0 / period - 1.0 / centre).abs();
+    let kf = k as f64;
+    k == 1 || beats(harmonic(p, kf)) < HARMONIC_BEATS || beats(harmonic(line, kf)) < HARMONIC_BEATS
+}
+
+fn multiple(p: f64, k: f64) -> f64 {
+    p * k
+}
+
+fn division(p: f64, k: f64) -> f64 {
+    p / k
+}
+
+/// Whether a peak at `period` lies in the notch of a known period, at a
+/// multiple or division that `span_s` of data does not resolve it from
+/// (span 0: any). `lines[i]` is the line of `known[i]` in this spectrum.
+pub fn notched(period: f64, known: &[f64], lines: &[f64], span_s: f64) -> bool {
+    known.iter().zip(lines).any(|(&p, &line)| {
+        let near = |k: u32, harmonic: fn(f64, f64) -> f64| {
+            (harmonic(p, k as f64) / period - 1.0).abs() <= NOTCH_WIDTH
+                && unresolved(period, (p, line), k, harmonic, span_s)
+        };
+        (1..=NOTCH_MULTIPLES).any(|k| near(k, multiple))
+            || (2..=NOTCH_DIVISIONS).any(|k| near(k, division))
     })
 }
 
 /// Whether `period` is within tolerance of a small-integer multiple or
-/// division of a known period.
-pub fn commensurate(period: f64, known: &[f64]) -> bool {
-    known.iter().any(|&p| {
+/// division of a known period that `span_s` of data does not resolve it
+/// from (span 0: any). `lines` as for [`notched`].
+pub fn commensurate(period: f64, known: &[f64], lines: &[f64], span_s: f64) -> bool {
+    known.iter().zip(lines).any(|(&p, &line)| {
         (1..=COMMENSURATE_MAX_RATIO).any(|k| {
-            let k = k as f64;
-            (p / (k * period) - 1.0).abs() < COMMENSURATE_TOLERANCE
-                || (period / (k * p) - 1.0).abs() < COMMENSURATE_TOLERANCE
+            let kf = k as f64;
+            ((p / (kf * period) - 1.0).abs() < COMMENSURATE_TOLERANCE
+                && unresolved(period, (p, line), k, division, span_s))
+                || ((period / (kf * p) - 1.0).abs() < COMMENSURATE_TOLERANCE
+                    && unresolved(period, (p, line), k, multiple, span_s))
         })
     })
 }
@@ -100,12 +146,14 @@ fn band_bins(period: f64, width: f64) -> (f64, f64) {
 /// The strongest peak in the bins `[lo, hi]` that is a local maximum of the
 /// spectrum (the strongest bin beside a notch is otherwise the skirt of the
 /// notched peak's main lobe) and neither notched nor commensurate with a
-/// known period.
+/// known period, unless `span_s` of data resolves it from that harmonic
+/// (`lines` as for [`notched`]).
 fn strongest_peak<S: Scalar>(
     spectrum: &Spectrum<'_, S>,
-    lo: f64,
-    hi: f64,
+    (lo, hi): (f64, f64),
     known: &[f64],
+    lines: &[f64],
+    span_s: f64,
 ) -> Option<Peak> {
     let lo = libm::ceil(lo.max(1.0)) as usize;
     let hi = (libm::floor(hi) as usize).min(NYQUIST_BIN);
@@ -114,16 +162,27 @@ fn strongest_peak<S: Scalar>(
         let power = spectrum.power(k);
         power > spectrum.power(k - 1)
             && power > spectrum.power(k + 1)
-            && !notched(p, known)
-            && !commensurate(p, known)
+            && !notched(p, known, lines, span_s)
+            && !commensurate(p, known, lines, span_s)
     })
 }
 
 /// The peak a found stage follows: the strongest within [`FOLLOW_WIDTH`] of
 /// `period`.
-fn peak_near<S: Scalar>(spectrum: &Spectrum<'_, S>, period: f64, known: &[f64]) -> Option<Peak> {
-    let (lo, hi) = band_bins(period, FOLLOW_WIDTH);
-    strongest_peak(spectrum, lo, hi, known)
+fn peak_near<S: Scalar>(
+    spectrum: &Spectrum<'_, S>,
+    period: f64,
+    known: &[f64],
+    lines: &[f64],
+    span_s: f64,
+) -> Option<Peak> {
+    strongest_peak(
+        spectrum,
+        band_bins(period, FOLLOW_WIDTH),
+        known,
+        lines,
+        span_s,
+    )
 }
 
 /// What the search knows of one stage.
@@ -205,6 +264,11 @@ impl<const N: usize> Discovery<N> {
             }
             return;
         }
+        // The worm's line in this spectrum (the strongest peak, as the
+        // guider takes it).
+        let worm_line = spectrum
+            .strongest(0, NYQUIST_BIN, |_| true)
+            .map_or(trackers[0].period_s, |p| p.period_s);
         for s in 1..N {
             // A found stage follows its line past the stages after it that
             // carry no weight yet: with three stages, an ungated third
@@ -212,16 +276,23 @@ impl<const N: usize> Discovery<N> {
             // second's line and closes its gate (C6, docs/model.md).
             let following = self.stages[s].found;
             let mut known = [0.0; N];
+            let mut lines = [0.0; N];
             let mut n_known = 0;
             for (k, t) in trackers.iter().enumerate() {
                 let stage = &self.stages[k];
                 let weighs = k < s || !following || stage.ratio >= GATE_OFF;
                 if k != s && (k == 0 || (stage.found && weighs)) {
                     known[n_known] = t.period_s;
+                    lines[n_known] = if k == 0 {
+                        worm_line
+                    } else {
+                        stage.peak_period_s.unwrap_or(t.period_s)
+                    };
                     n_known += 1;
                 }
             }
             let known = &known[..n_known];
+            let lines = &lines[..n_known];
             let stage = &mut self.stages[s];
             stage.peak_period_s = None;
             stage.ratio_now = 0.0;
@@ -232,7 +303,7 @@ impl<const N: usize> Discovery<N> {
             let band_hi = BAND_WORM_PERIODS * trackers[0].period_s;
             let peak = if stage.found {
                 let own = trackers[s].period_s;
-                let mut peak = peak_near(spectrum, own, known);
+                let mut peak = peak_near(spectrum, own, known, lines, span_s);
                 // Follow the energy: a stage whose gate is not yet fully
                 // open moves to its octave (twice or half its period) when
                 // that peak carries clearly more power than its own. (On C5
@@ -248,7 +319,7 @@ impl<const N: usize> Discovery<N> {
                         {
                             continue;
                         }
-                        let Some(r) = peak_near(spectrum, relative, known) else {
+                        let Some(r) = peak_near(spectrum, relative, known, lines, span_s) else {
                             continue;
                         };
                         if r.power > MOVE_POWER_RATIO * peak.map_or(0.0, |p| p.power) {
@@ -262,11 +333,11 @@ impl<const N: usize> Discovery<N> {
                 }
                 peak
             } else {
-                let (lo, hi) = match self.seeds[s] {
+                let band = match self.seeds[s] {
                     Some(p) => band_bins(p, FOLLOW_WIDTH),
                     None => (period_bin(band_hi), period_bin(band_lo)),
                 };
-                strongest_peak(spectrum, lo, hi, known)
+                strongest_peak(spectrum, band, known, lines, span_s)
                     .filter(|p| resolved(p.period_s, known, span_s))
             };
             let Some(peak) = peak else { continue };
@@ -308,25 +379,136 @@ mod tests {
     fn notches_cover_harmonics_and_divisions() {
         let known = [432.0];
         for p in [432.0, 864.0, 2160.0, 216.0, 144.0, 420.0, 150.0] {
-            assert!(notched(p, &known), "{p}");
+            assert!(notched(p, &known, &known, 0.0), "{p}");
         }
         // C5's second stage, 7 % from the worm's 144 s division: the paper's
         // 8 % notch hid it; ours is as wide as the commensurability guard.
         for p in [380.0, 288.0, 155.0, 110.0, 108.0] {
-            assert!(!notched(p, &known), "{p}");
+            assert!(!notched(p, &known, &known, 0.0), "{p}");
         }
     }
 
     #[test]
     fn guard_refuses_commensurate_periods() {
         // C4: 108 s is the worm's fourth harmonic.
-        assert!(commensurate(108.0, &[432.0]));
+        assert!(commensurate(108.0, &[432.0], &[432.0], 0.0));
         // The paper's limitation case: 150 s against 288 s is within 4 % of 2:1.
-        assert!(commensurate(150.0, &[288.0]));
+        assert!(commensurate(150.0, &[288.0], &[288.0], 0.0));
         for p in [380.0, 288.0, 155.0] {
-            assert!(!commensurate(p, &[432.0]), "{p}");
+            assert!(!commensurate(p, &[432.0], &[432.0], 0.0), "{p}");
         }
-        assert!(!commensurate(110.0, &[288.0]));
+        assert!(!commensurate(110.0, &[288.0], &[288.0], 0.0));
+    }
+
+    #[test]
+    fn near_harmonic_admitted_once_the_span_resolves_it() {
+        // H1: a gear 5 % off the 432 s worm's second harmonic (216 s) beats
+        // with it at 4,320 s.
+        let (period, worm) = (205.7, [432.0]);
+        let beat = 1.0 / (1.0 / period - 2.0 / 432.0);
+        let before = 0.9 * HARMONIC_BEATS * beat;
+        let after = 1.1 * HARMONIC_BEATS * beat;
+        assert!(
+            notched(period, &worm, &worm, before) && commensurate(period, &worm, &worm, before)
+        );
+        assert!(
+            !notched(period, &worm, &worm, after) && !commensurate(period, &worm, &worm, after)
+        );
+        // Near the third and fourth harmonics, either side.
+        for (period, k) in [(139.8, 3.0), (151.6, 3.0), (105.9, 4.0), (112.5, 4.0)] {
+            let beat = 1.0 / (1.0 / period - k / 432.0).abs();
+            let before = 0.9 * HARMONIC_BEATS * beat;
+            let after = 1.1 * HARMONIC_BEATS * beat;
+            assert!(commensurate(period, &worm, &worm, before), "{period}");
+            assert!(!notched(period, &worm, &worm, after), "{period}");
+            assert!(!commensurate(period, &worm, &worm, after), "{period}");
+        }
+        // A multiple of a known stage (a slower stage 3 % off twice a 110 s
+        // one) likewise.
+        let beat = 1.0 / (1.0 / 220.0 - 1.0 / 226.6);
+        assert!(commensurate(
+            226.6,
+            &[110.0],
+            &[110.0],
+            0.9 * HARMONIC_BEATS * beat
+        ));
+        assert!(!commensurate(
+            226.6,
+            &[110.0],
+            &[110.0],
+            1.1 * HARMONIC_BEATS * beat
+        ));
+    }
+
+    #[test]
+    fn exact_harmonics_refused_whatever_the_span() {
+        for span in [0.0, 1e4, 1e6, 1e9] {
+            for k in 2..=5 {
+                let p = 432.0 / k as f64;
+                assert!(commensurate(p, &[432.0], &[432.0], span), "{k} {span}");
+            }
+            for k in 2..=3 {
+                assert!(
+                    notched(432.0 / k as f64, &[432.0], &[432.0], span),
+                    "{k} {span}"
+                );
+            }
+            // 0.1 % off (a worm period tracked that closely) needs more
+            // data than the grid holds (10,240 s).
+            assert!(commensurate(432.0 / 4.0 * 1.001, &[432.0], &[432.0], 1e4));
+            // A worm tracked 4 % long (300 s for 288 s) still bars its true
+            // second harmonic, by its line in the spectrum.
+            assert!(commensurate(144.0, &[300.0], &[288.0], span), "{span}");
+            assert!(notched(144.0, &[300.0], &[288.0], span), "{span}");
+            // The known period itself, and 5 % beside it, whatever the span.
+            assert!(
+                notched(432.0, &[432.0], &[432.0], span)
+                    && commensurate(432.0, &[432.0], &[432.0], span)
+            );
+            assert!(commensurate(411.4, &[432.0], &[432.0], span));
+        }
+    }
+
+    #[test]
+    fn scan_admits_a_near_harmonic_stage_beside_a_true_harmonic() {
+        use crate::model::gp::grid::Grid;
+        use crate::model::spectral::spectrum::Spectrum;
+        // H2: a 432 s worm with a true second harmonic (216 s) and a gear
+        // 5 % off it (205.7 s), beat 4,320 s.
+        let pi2 = 2.0 * core::f64::consts::PI;
+        let g = |t: f64| {
+            9.0 * libm::sin(pi2 * t / 432.0)
+                + 3.0 * libm::sin(pi2 * t / 216.0)
+                + 4.5 * libm::sin(pi2 * t / 205.7)
+        };
+        let stage = |span: f64| {
+            let mut grid: Grid<f64> = Grid::new();
+            let mut t = 0.0;
+            while t < span {
+                grid.push(t, g(t), 1.0);
+                t += 2.0;
+            }
+            let mut buf = [0.0; crate::model::spectral::fft::FFT_LEN];
+            let spectrum = Spectrum::compute(&grid, &mut buf).unwrap();
+            let worm = spectrum.strongest(0, NYQUIST_BIN, |_| true).unwrap();
+            let mut trackers = [PeriodTracker::new(432.0); 2];
+            trackers[0].disagreement = 0.0;
+            let mut d: Discovery<2> = Discovery::new([None, None]);
+            let span = grid.len() as f64 * CELL_S;
+            d.scan(&spectrum, &mut trackers, worm.power, span);
+            d.saved(1).0.then_some(trackers[1].period_s)
+        };
+        // Short of the beats required: nothing is admitted inside the
+        // harmonic's notch (the line, or the lobe it merges into with the
+        // harmonic's).
+        let early = stage(0.7 * HARMONIC_BEATS * 4320.0);
+        assert!(
+            early.is_none_or(|p| (p / 216.0 - 1.0).abs() > NOTCH_WIDTH),
+            "{early:?}"
+        );
+        // Two beats: found at its own period, not at the harmonic's.
+        let late = stage(8640.0).unwrap();
+        assert!((late - 205.7).abs() < 1.5, "{late}");
     }
 
     #[test]
