@@ -625,9 +625,8 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
                     self.worm_peak_s = worm.map(|p| p.period_s);
                     if N > 1 {
                         let span = self.grid.len() as f64 * CELL_S;
-                        let power = worm.map_or(0.0, |p| p.power);
                         self.discovery
-                            .scan(&spectrum, &mut self.trackers, power, span);
+                            .scan(&spectrum, &mut self.trackers, worm, span);
                     }
                 }
             }

@@ -246,12 +246,12 @@ impl<const N: usize> Discovery<N> {
     }
 
     /// Read a new spectrum: find or follow every stage's peak.
-    /// `worm_power` is the power of the worm's peak, `span_s` the data span.
+    /// `worm` is the worm's peak (the strongest) in it, `span_s` the data span.
     pub fn scan<S: Scalar>(
         &mut self,
         spectrum: &Spectrum<'_, S>,
         trackers: &mut [PeriodTracker; N],
-        worm_power: f64,
+        worm: Option<Peak>,
         span_s: f64,
     ) {
         // The notches and the guard stand around the worm's period: while
@@ -264,11 +264,8 @@ impl<const N: usize> Discovery<N> {
             }
             return;
         }
-        // The worm's line in this spectrum (the strongest peak, as the
-        // guider takes it).
-        let worm_line = spectrum
-            .strongest(0, NYQUIST_BIN, |_| true)
-            .map_or(trackers[0].period_s, |p| p.period_s);
+        let worm_power = worm.map_or(0.0, |p| p.power);
+        let worm_line = worm.map_or(trackers[0].period_s, |p| p.period_s);
         for s in 1..N {
             // A found stage follows its line past the stages after it that
             // carry no weight yet: with three stages, an ungated third
@@ -487,7 +484,7 @@ mod tests {
         trackers[0].disagreement = 0.0;
         let mut d: Discovery<2> = Discovery::new([None, None]);
         let span = grid.len() as f64 * CELL_S;
-        d.scan(&spectrum, &mut trackers, worm.power, span);
+        d.scan(&spectrum, &mut trackers, Some(worm), span);
         d.saved(1).0.then_some(trackers[1].period_s)
     }
 
@@ -562,7 +559,7 @@ mod tests {
         d.scan(
             &spectrum,
             &mut trackers,
-            worm.power,
+            Some(worm),
             grid.len() as f64 * CELL_S,
         );
         // The 144 s harmonic is notched; the strongest admissible peak is
@@ -581,7 +578,7 @@ mod tests {
         // With the worm still unsettled nothing is searched.
         let mut fresh: Discovery<2> = Discovery::new([None, None]);
         let mut unsettled = [PeriodTracker::new(300.0); 2];
-        fresh.scan(&spectrum, &mut unsettled, worm.power, 4000.0);
+        fresh.scan(&spectrum, &mut unsettled, Some(worm), 4000.0);
         fresh.step(&mut unsettled, &mut gates);
         assert_eq!(gates[1], 0.0);
     }
