@@ -44,8 +44,10 @@ pub const RESOLUTION_BEATS: f64 = 1.5;
 /// Beat periods of data against a harmonic `k P` or `P / k` (k >= 2) of a
 /// known period from which a peak inside its notch or guard counts as a
 /// line of its own. A true harmonic sits at the harmonic itself, whatever
-/// the span, so it stays refused. Measured on the near-harmonic cases H1-H11:
-/// see `docs/model.md`.
+/// the span, so it stays refused. Fewer beats would help the near-harmonic
+/// cases H1-H11 more, but admit C8's 55 s line (its second stage's own
+/// harmonic, 4.5 % off the worm's fifth) before the 110 s fundamental, and
+/// the stage then misses it: see `docs/model.md`.
 pub const HARMONIC_BEATS: f64 = 1.5;
 /// A found stage that is not yet fully gated in moves to twice or half its
 /// period where that peak has this many times the power of its own, if the
