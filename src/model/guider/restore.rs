@@ -22,6 +22,10 @@ use crate::model::numeric::scalar::Scalar;
 use crate::model::snapshot::{encode, Phase, SavedStage, Snapshot, SnapshotError, SNAPSHOT_CELLS};
 use crate::model::spectral::period::PeriodTracker;
 
+mod harmonics;
+
+use harmonics::Harmonics;
+
 /// Whole worm periods tried as the gap between the saved data and the
 /// first new frame. Beyond 8 (an hour at 432 s) a stage's envelope (20
 /// periods) and the long SE (700 s) have forgotten the saved data anyway,
@@ -34,10 +38,16 @@ const PLACEMENT_MAX_STEPS: f64 = 4096.0;
 /// Worm periods of new data the phase search waits for (measured against
 /// 0.3 and 1: docs/model.md, "Snapshot and restore").
 const PHASE_SEARCH_PERIODS: f64 = 0.5;
-/// The same with the worm's phase known (an index): fewer candidates to
-/// tell apart, and until the search the other stages are left out of the
-/// fit (measured against 0.35 and 0.5 on `guide-sim nights`; docs/model.md).
+/// The same with the worm's phase known (an index) but the other stages'
+/// not fitted apart (the placement search): fewer candidates to tell apart,
+/// and until the search the other stages are left out of the fit (measured
+/// against 0.35 and 0.5 on `guide-sim nights`; docs/model.md).
 const WORM_PHASE_SEARCH_PERIODS: f64 = 0.25;
+/// The same with the other stages fitted apart: each stage's phase and a
+/// level are all that is searched (measured on `guide-sim nights` against
+/// 0.05, which placed C8's 110 s stage wrongly, and 0.15 and 0.25, which
+/// leave the stages out longer; docs/model.md).
+const STAGE_PHASE_SEARCH_PERIODS: f64 = 0.1;
 /// Phase error per second of gap between the saved data and the first new
 /// frame, s/s: the relative error of a tracked period (C5 after 8,000 s in
 /// `f32`: 432.23 s for 432 s, 5e-4).
@@ -73,11 +83,15 @@ enum Place {
 /// [`PHASE_SEARCH_PERIODS`] of it are in ([`WORM_PHASE_SEARCH_PERIODS`]
 /// with the worm's phase known).
 #[derive(Clone, Copy, Debug)]
-pub(super) struct PhaseSearch {
+pub(super) struct PhaseSearch<const N: usize> {
     new_from: usize,
     /// The restored data is not placed at any known phase: no prediction
     /// until the search has placed it.
     blocks: bool,
+    /// With the worm's phase known: the restored cells (held `..saved`)
+    /// placed at it, the other stages' shares taken out of them, to be put
+    /// back at the phases the new data shows.
+    stages: Option<(usize, Harmonics<N>)>,
 }
 
 impl<S: Scalar, const N: usize> Guider<S, N> {
@@ -178,6 +192,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             self.phase_search = Some(PhaseSearch {
                 new_from: self.grid.len(),
                 blocks: true,
+                stages: None,
             });
             return self.grid.open_cell_end();
         }
@@ -185,25 +200,138 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         // frame on: no warm-up (its 20 s of the guider alone were a fifth
         // of the excess over settled of a parked night's first 30 min).
         self.warm_up_frames = 0;
-        let at = self.placement(time_s - resume.grid_zero_s, resume.place == Place::Worm);
+        let mut at = self.placement(time_s - resume.grid_zero_s, resume.place == Place::Worm);
+        if resume.place == Place::Worm {
+            let saved = self.grid.len();
+            let end = self.grid.open_cell_end();
+            // With the stages apart, the saved cells go right before the
+            // frame (no gap), the worm's share moved to its phase there;
+            // the other stages' phases are found by the search.
+            let stages = self.take_out_stages(saved, at - end);
+            if stages.is_some() {
+                at = end;
+            }
+            // The first new data lands in the cell after those the frame
+            // at `at` completes.
+            let completed = libm::floor((at - end) / CELL_S) + 1.0;
+            self.phase_search = Some(PhaseSearch {
+                new_from: saved + completed.max(0.0) as usize,
+                blocks: false,
+                stages: stages.map(|h| (saved, h)),
+            });
+        }
         let periods = self.trackers.map(|t| t.period_s);
-        self.kernel = Kernel::new(&periods, &self.gates);
+        self.kernel = Kernel::new(&periods, &self.fit_gates());
         if let Some(level) = gear.zip(self.mean_from_data(at)).map(|(g, m)| g - m) {
             if level.is_finite() {
                 self.grid.shift_gear(0..self.grid.len(), level);
+                if let Some(PhaseSearch {
+                    stages: Some((_, h)),
+                    ..
+                }) = &mut self.phase_search
+                {
+                    h.shift_level(level);
+                }
             }
         }
-        if resume.place == Place::Worm {
-            // The other stages' phases are found by the search; the
-            // first new data lands in the cell after those the frame at
-            // `at` completes.
-            let completed = libm::floor((at - self.grid.open_cell_end()) / CELL_S) + 1.0;
-            self.phase_search = Some(PhaseSearch {
-                new_from: self.grid.len() + completed.max(0.0) as usize,
-                blocks: false,
-            });
-        }
         at
+    }
+
+    /// The measured cells among held `cells`: grid time and gear error.
+    fn measured_cells(
+        &self,
+        cells: core::ops::Range<usize>,
+    ) -> impl Iterator<Item = (f64, f64)> + Clone + '_ {
+        let grid = &self.grid;
+        cells.filter_map(move |i| {
+            let (g, v) = grid.cell(i);
+            (v.to_f64() < LEVEL_MAX_VARIANCE).then(|| (grid.cell_time(i), g.to_f64()))
+        })
+    }
+
+    /// Fit the stages' shares of the restored cells (held `..saved`), move
+    /// the worm's by `worm_shift` s (its share at `t` becomes what it was
+    /// at `t + worm_shift`) and take every other stage's out; `None`
+    /// (nothing changed) if the fit fails or no stage but the worm could
+    /// be fitted.
+    fn take_out_stages(&mut self, saved: usize, worm_shift: f64) -> Option<Harmonics<N>> {
+        let first = self.grid.cell_time(0);
+        let span = self.grid.cell_time(saved.checked_sub(1)?) - first;
+        let periods = self.trackers.map(|t| t.period_s);
+        let fitted = Harmonics::fit(
+            self.measured_cells(0..saved),
+            first,
+            span,
+            &periods,
+            &self.gates,
+        )?;
+        if !(1..N).any(|s| fitted.has_stage(s)) {
+            return None;
+        }
+        let mut h = fitted;
+        h.shift(0, worm_shift);
+        self.grid.shift_gear_with(0..saved, |t| {
+            let others: f64 = (1..N).map(|s| fitted.stage(s, t)).sum();
+            h.stage(0, t) - fitted.stage(0, t) - others
+        });
+        Some(h)
+    }
+
+    /// Put the stages taken out of the restored cells (held `..saved`, see
+    /// [`take_out_stages`](Self::take_out_stages)) back at the phases the
+    /// new data (held `new_from..`) shows: each stage's shift, in turn,
+    /// that best explains what the new data holds beyond the level, the
+    /// slope, the worm and the stages already placed; then the restored
+    /// cells move to the level of what remains. A stage the new data
+    /// cannot place (too little measured) stays out of the restored cells.
+    fn put_back_stages(&mut self, saved: usize, new_from: usize, h: &Harmonics<N>) {
+        // What the new cells hold beyond the level, the slope and the worm
+        // (NaN: not measured), in the scratch buffer.
+        let new = self.grid.len().saturating_sub(new_from);
+        let t0 = self.grid.cell_time(new_from);
+        for (j, r) in self.scratch.iter_mut().enumerate().take(new) {
+            let (g, v) = self.grid.cell(new_from + j);
+            let t = t0 + CELL_S * j as f64;
+            *r = if v.to_f64() < LEVEL_MAX_VARIANCE {
+                S::from_f64(g.to_f64() - h.trend(t) - h.stage(0, t))
+            } else {
+                S::from_f64(f64::NAN)
+            };
+        }
+        let mut shifts = [None; N];
+        for (s, shift) in shifts.iter_mut().enumerate().skip(1) {
+            if !h.has_stage(s) {
+                continue;
+            }
+            let scratch = &self.scratch;
+            let residuals = (0..new).filter_map(move |j| {
+                let r = scratch.get(j)?.to_f64();
+                r.is_finite().then(|| (t0 + CELL_S * j as f64, r))
+            });
+            *shift = h.phase(s, residuals);
+            if let Some(delta) = *shift {
+                for (j, r) in self.scratch.iter_mut().enumerate().take(new) {
+                    let t = t0 + CELL_S * j as f64;
+                    *r -= S::from_f64(h.stage(s, t + delta));
+                }
+            }
+        }
+        let (sum, n) = self
+            .scratch
+            .iter()
+            .take(new)
+            .map(|r| r.to_f64())
+            .filter(|r| r.is_finite())
+            .fold((0.0, 0u32), |(sum, n), r| (sum + r, n + 1));
+        let level = if n > 0 { sum / f64::from(n) } else { 0.0 };
+        self.grid.shift_gear_with(0..saved, |t| {
+            let stages: f64 = shifts
+                .iter()
+                .enumerate()
+                .filter_map(|(s, d)| d.map(|d| h.stage(s, t + d)))
+                .sum();
+            stages + level
+        });
     }
 
     /// Whether the model must wait for the phase search (the restored data
@@ -216,16 +344,19 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         };
         let worm_cells = libm::ceil(self.trackers[0].period_s / CELL_S);
         let new_cells = self.grid.len().saturating_sub(search.new_from);
-        let wait = if search.blocks {
-            PHASE_SEARCH_PERIODS
-        } else {
-            WORM_PHASE_SEARCH_PERIODS
+        let wait = match (search.blocks, search.stages.is_some()) {
+            (true, _) => PHASE_SEARCH_PERIODS,
+            (false, true) => STAGE_PHASE_SEARCH_PERIODS,
+            (false, false) => WORM_PHASE_SEARCH_PERIODS,
         };
         if (new_cells as f64) < wait * worm_cells && self.grid.len() < GRID_CELLS {
             return search.blocks;
         }
         self.phase_search = None;
-        self.search_phase(search.new_from, !search.blocks);
+        match search.stages {
+            Some((saved, h)) => self.put_back_stages(saved, search.new_from, &h),
+            None => self.search_phase(search.new_from, !search.blocks),
+        }
         false
     }
 
