@@ -285,3 +285,82 @@ impl<const N: usize> Harmonics<N> {
         delta.is_finite().then_some(delta)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A C5-like gear with a level and a drift: the 432 s worm and a 155 s
+    /// stage, each with its second harmonic.
+    fn worm(t: f64) -> f64 {
+        9.0 * libm::sin(TAU * t / 432.0) + 3.0 * libm::cos(TAU * t / 216.0)
+    }
+    fn stage(t: f64) -> f64 {
+        4.5 * libm::sin(TAU * t / 155.0 + 0.3) + 1.5 * libm::sin(TAU * t / 77.5)
+    }
+
+    /// 1,000 cells of 5 s (the saved span), as `fit` takes them.
+    fn cells(gear: impl Fn(f64) -> f64 + Clone) -> impl Iterator<Item = (f64, f64)> + Clone {
+        (0..1000).map(move |i| {
+            let t = 5.0 * i as f64 - 2.5;
+            (t, gear(t))
+        })
+    }
+
+    fn fit(periods: [f64; 2]) -> Option<Harmonics<2>> {
+        let gear = |t: f64| 3.0 + 1e-3 * t + worm(t) + stage(t);
+        Harmonics::fit(cells(gear), -2.5, 4995.0, &periods, &[1.0, 1.0])
+    }
+
+    #[test]
+    fn the_fit_takes_the_stages_apart() {
+        let h = fit([432.0, 155.0]).unwrap();
+        for i in 0..200 {
+            let t = 25.0 * i as f64;
+            assert!((h.stage(0, t) - worm(t)).abs() < 1e-6, "worm at {t}");
+            assert!((h.stage(1, t) - stage(t)).abs() < 1e-6, "stage at {t}");
+            assert!((h.trend(t) - 3.0 - 1e-3 * t).abs() < 1e-6, "trend at {t}");
+        }
+    }
+
+    #[test]
+    fn a_shifted_stage_is_the_stage_later_and_its_phase_is_found() {
+        let mut h = fit([432.0, 155.0]).unwrap();
+        let moved = {
+            let mut m = h;
+            m.shift(1, 40.0);
+            m
+        };
+        for i in 0..100 {
+            let t = 7.0 * i as f64;
+            assert!((moved.stage(1, t) - h.stage(1, t + 40.0)).abs() < 1e-9);
+        }
+        // Nine cells (a tenth of the worm's period) of the stage 60 s on,
+        // at another level: the phase search finds the 60 s.
+        let residuals = (0..9).map(|j| {
+            let t = 6000.0 + 5.0 * j as f64;
+            (t, stage(t + 60.0) - 2.0)
+        });
+        let found = h.phase(1, residuals).unwrap();
+        assert!((found - 60.0).abs() < 0.2, "{found}");
+        h.shift(1, found);
+        assert!((h.stage(1, 6000.0) - stage(6060.0)).abs() < 0.05);
+    }
+
+    #[test]
+    fn what_the_span_cannot_tell_apart_stays_with_the_earlier_stage() {
+        // C3: the 288 s stage's second harmonic is the worm's third, its
+        // fourth the worm's sixth.
+        let c3 = fitted_flags([432.0, 288.0]);
+        assert_eq!(c3[1], [true, false, true, false]);
+        // C2: 380 s and 432 s differ by 1.6 cycles over the 83 min saved.
+        assert_eq!(fitted_flags([432.0, 380.0])[1], [false; HARMONICS]);
+        // A stage at the worm's harmonic (C4's 216 s) is the worm's.
+        assert_eq!(fitted_flags([432.0, 216.0])[1], [false; HARMONICS]);
+        assert!(!fit([432.0, 216.0]).unwrap().has_stage(1));
+    }
+
+    fn fitted_flags(periods: [f64; 2]) -> [[bool; HARMONICS]; 2] {
+        super::fitted(&periods, &[1.0, 1.0], 4995.0)
+    }
+}
