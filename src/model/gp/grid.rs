@@ -196,20 +196,19 @@ impl<S: Scalar> Grid<S> {
         self.shift_gear_with(cells, |_| by);
     }
 
-    /// Add `by(t)` to the gear error of each held cell of `cells` (0 =
-    /// oldest), `t` its centre relative to the origin; if they reach the
-    /// newest, the open cell's too, by `by` at its start.
-    pub fn shift_gear_with(&mut self, cells: core::ops::Range<usize>, by: impl Fn(f64) -> f64) {
+    /// Add `by(i)` to the gear error of each held cell `i` of `cells` (0 =
+    /// oldest); if they reach the newest, the open cell's too, by
+    /// `by(len)`.
+    pub fn shift_gear_with(&mut self, cells: core::ops::Range<usize>, by: impl Fn(usize) -> f64) {
         let end = cells.end.min(self.len);
         for i in cells.start..end {
             let k = (self.head + i) % GRID_CELLS;
-            self.gear[k] += S::from_f64(by(self.cell_time(i)));
+            self.gear[k] += S::from_f64(by(i));
         }
         if end == self.len {
-            let start = self.cell_end - CELL_S;
-            let by = by(start);
+            let by = by(self.len);
             self.anchor_gear += by;
-            self.gear_sum += by * (self.last_time - start);
+            self.gear_sum += by * (self.last_time - (self.cell_end - CELL_S));
         }
     }
 

@@ -237,18 +237,6 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         at
     }
 
-    /// The measured cells among held `cells`: grid time and gear error.
-    fn measured_cells(
-        &self,
-        cells: core::ops::Range<usize>,
-    ) -> impl Iterator<Item = (f64, f64)> + Clone + '_ {
-        let grid = &self.grid;
-        cells.filter_map(move |i| {
-            let (g, v) = grid.cell(i);
-            (v.to_f64() < LEVEL_MAX_VARIANCE).then(|| (grid.cell_time(i), g.to_f64()))
-        })
-    }
-
     /// Fit the stages' shares of the restored cells (held `..saved`), move
     /// the worm's by `worm_shift` s (its share at `t` becomes what it was
     /// at `t + worm_shift`) and take every other stage's out; `None`
@@ -258,23 +246,33 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         let first = self.grid.cell_time(0);
         let span = self.grid.cell_time(saved.checked_sub(1)?) - first;
         let periods = self.trackers.map(|t| t.period_s);
-        let fitted = Harmonics::fit(
-            self.measured_cells(0..saved),
-            first,
-            span,
-            &periods,
-            &self.gates,
-        )?;
+        let grid = &self.grid;
+        let cells = (0..saved).map(|i| {
+            let (g, v) = grid.cell(i);
+            (v.to_f64() < LEVEL_MAX_VARIANCE).then(|| g.to_f64())
+        });
+        let fitted = Harmonics::fit(cells, first, span, &periods, &self.gates)?;
         if !(1..N).any(|s| fitted.has_stage(s)) {
             return None;
         }
         let mut h = fitted;
         h.shift(0, worm_shift);
-        self.grid.shift_gear_with(0..saved, |t| {
-            let others: f64 = (1..N).map(|s| fitted.stage(s, t)).sum();
-            h.stage(0, t) - fitted.stage(0, t) - others
-        });
+        // The change of each cell (and the open one after them), in the
+        // scratch buffer.
+        let changes = fitted.shares(first).zip(h.shares(first));
+        for (slot, (was, now)) in self.scratch.iter_mut().zip(changes).take(saved + 1) {
+            *slot = S::from_f64(now[0] - was.iter().sum::<f64>());
+        }
+        self.shift_cells_by_scratch(saved);
         Some(h)
+    }
+
+    /// Add the scratch buffer's first values to the held cells `..cells`
+    /// (and, if they reach the newest, the next to the open cell).
+    fn shift_cells_by_scratch(&mut self, cells: usize) {
+        let scratch = &self.scratch;
+        self.grid
+            .shift_gear_with(0..cells, |i| scratch.get(i).map_or(0.0, |c| c.to_f64()));
     }
 
     /// Put the stages taken out of the restored cells (held `..saved`, see
@@ -324,14 +322,19 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             .filter(|r| r.is_finite())
             .fold((0.0, 0u32), |(sum, n), r| (sum + r, n + 1));
         let level = if n > 0 { sum / f64::from(n) } else { 0.0 };
-        self.grid.shift_gear_with(0..saved, |t| {
-            let stages: f64 = shifts
-                .iter()
-                .enumerate()
-                .filter_map(|(s, d)| d.map(|d| h.stage(s, t + d)))
-                .sum();
-            stages + level
-        });
+        let mut placed = *h;
+        placed.clear(0);
+        for (s, shift) in shifts.iter().enumerate().skip(1) {
+            match shift {
+                Some(delta) => placed.shift(s, *delta),
+                None => placed.clear(s),
+            }
+        }
+        let shares = placed.shares(self.grid.cell_time(0));
+        for (slot, share) in self.scratch.iter_mut().zip(shares).take(saved) {
+            *slot = S::from_f64(share.iter().sum::<f64>() + level);
+        }
+        self.shift_cells_by_scratch(saved);
     }
 
     /// Whether the model must wait for the phase search (the restored data

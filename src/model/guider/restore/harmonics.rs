@@ -100,12 +100,63 @@ fn fitted<const N: usize>(
     fitted
 }
 
+/// Each stage's cosine and sine of `2π t / P` at `t = first`, `first +
+/// CELL_S`, ...: by rotation, two `libm` calls per stage in all (on the
+/// target `f64` is in software, and a call costs thousands of
+/// instructions); in `f64` a grid's rotations drift by about 1e-13.
+fn phasors<const N: usize>(periods: &[f64; N], first: f64) -> impl Iterator<Item = [[f64; 2]; N]> {
+    let turn = |angle: f64| [libm::cos(angle), libm::sin(angle)];
+    let mut now = periods.map(|p| turn(TAU * first / p));
+    let step = periods.map(|p| turn(TAU * CELL_S / p));
+    core::iter::from_fn(move || {
+        let out = now;
+        for (n, [c, s]) in now.iter_mut().zip(step) {
+            *n = [n[0] * c - n[1] * s, n[1] * c + n[0] * s];
+        }
+        Some(out)
+    })
+}
+
+/// The fit's terms: 1, the slope's `slope_x` ((t - t_ref) / half the
+/// span), and the cosine and sine of each fitted harmonic, from each
+/// stage's `phasors` at `t`, in the order of [`Harmonics::fit`]'s unknowns.
+fn basis<const N: usize>(
+    slope_x: f64,
+    phasors: &[[f64; 2]; N],
+    fitted: &[[bool; HARMONICS]; N],
+) -> [f64; TERMS] {
+    let mut x = [0.0; TERMS];
+    x[0] = 1.0;
+    x[1] = slope_x;
+    let mut slots = x.iter_mut().skip(2);
+    for (&[c1, s1], fitted) in phasors.iter().zip(fitted) {
+        for ([c, s], _) in harmonics(c1, s1).iter().zip(fitted).filter(|(_, &f)| f) {
+            if let (Some(a), Some(b)) = (slots.next(), slots.next()) {
+                *a = *c;
+                *b = *s;
+            }
+        }
+    }
+    x
+}
+
+/// A stage's share from its coefficients and the cosine and sine of its
+/// fundamental's phase.
+fn share(coeffs: &[[f64; 2]; HARMONICS], cos: f64, sin: f64) -> f64 {
+    coeffs
+        .iter()
+        .zip(&harmonics(cos, sin))
+        .map(|([a, b], [c, s])| a * c + b * s)
+        .sum()
+}
+
 impl<const N: usize> Harmonics<N> {
-    /// Fit to `cells` (grid time and gear error of each measured cell),
-    /// which lie within `span` s after `first`. `None` if the cells do not
-    /// determine the fit (too few, or the normal equations do not factor).
+    /// Fit to `cells`, the gear error of consecutive cells from the one
+    /// centred at grid time `first` (`None`: not measured), which span
+    /// `span` s. `None` if they do not determine the fit (too few
+    /// measured, or the normal equations do not factor).
     pub(super) fn fit(
-        cells: impl Iterator<Item = (f64, f64)> + Clone,
+        cells: impl Iterator<Item = Option<f64>>,
         first: f64,
         span: f64,
         periods: &[f64; N],
@@ -125,8 +176,10 @@ impl<const N: usize> Harmonics<N> {
         normal.set_dim(terms);
         let mut rhs = [0.0; TERMS];
         let mut count = 0usize;
-        for (t, y) in cells {
-            let x = h.basis(t, half_span, &fitted);
+        for (k, (y, phasors)) in cells.zip(phasors(periods, first)).enumerate() {
+            let Some(y) = y else { continue };
+            let t = first + CELL_S * k as f64;
+            let x = basis((t - h.t_ref) / half_span, &phasors, &fitted);
             for (i, (&xi, b)) in x.iter().zip(&mut rhs).take(terms).enumerate() {
                 *b += xi * y;
                 for (a, &xj) in normal.row_mut(i).iter_mut().zip(&x) {
@@ -160,28 +213,21 @@ impl<const N: usize> Harmonics<N> {
         Some(h)
     }
 
-    /// The fit's terms at grid time `t`: 1, the slope's (t - t_ref) /
-    /// `half_span`, and the cosine and sine of each fitted harmonic, in the
-    /// order of [`fit`](Self::fit)'s unknowns.
-    fn basis(&self, t: f64, half_span: f64, fitted: &[[bool; HARMONICS]; N]) -> [f64; TERMS] {
-        let mut x = [0.0; TERMS];
-        x[0] = 1.0;
-        x[1] = (t - self.t_ref) / half_span;
-        let mut slots = x.iter_mut().skip(2);
-        for (&period, fitted) in self.periods.iter().zip(fitted) {
-            if !fitted.iter().any(|&f| f) {
-                continue;
-            }
-            let theta = TAU * t / period;
-            let cs = harmonics(libm::cos(theta), libm::sin(theta));
-            for ([c, s], _) in cs.iter().zip(fitted).filter(|(_, &f)| f) {
-                if let (Some(a), Some(b)) = (slots.next(), slots.next()) {
-                    *a = *c;
-                    *b = *s;
-                }
-            }
+    /// Each stage's share at `first`, `first + CELL_S`, ... (grid times).
+    pub(super) fn shares(&self, first: f64) -> impl Iterator<Item = [f64; N]> + '_ {
+        phasors(&self.periods, first).map(|phasors| {
+            core::array::from_fn(|s| match (self.coeffs.get(s), phasors.get(s)) {
+                (Some(coeffs), Some(&[c, sn])) => share(coeffs, c, sn),
+                _ => 0.0,
+            })
+        })
+    }
+
+    /// Take stage `s` out (its share is 0 everywhere).
+    pub(super) fn clear(&mut self, s: usize) {
+        if let Some(c) = self.coeffs.get_mut(s) {
+            *c = [[0.0; 2]; HARMONICS];
         }
-        x
     }
 
     /// Move stage `s` by `by` s: its share at `t` becomes what it was at
@@ -215,12 +261,7 @@ impl<const N: usize> Harmonics<N> {
             return 0.0;
         };
         let theta = TAU * t / period;
-        let cs = harmonics(libm::cos(theta), libm::sin(theta));
-        coeffs
-            .iter()
-            .zip(&cs)
-            .map(|([a, b], [c, s])| a * c + b * s)
-            .sum()
+        share(coeffs, libm::cos(theta), libm::sin(theta))
     }
 
     /// Whether any harmonic of stage `s` was fitted.
@@ -300,11 +341,8 @@ mod tests {
     }
 
     /// 1,000 cells of 5 s (the saved span), as `fit` takes them.
-    fn cells(gear: impl Fn(f64) -> f64 + Clone) -> impl Iterator<Item = (f64, f64)> + Clone {
-        (0..1000).map(move |i| {
-            let t = 5.0 * i as f64 - 2.5;
-            (t, gear(t))
-        })
+    fn cells(gear: impl Fn(f64) -> f64) -> impl Iterator<Item = Option<f64>> {
+        (0..1000).map(move |i| Some(gear(5.0 * i as f64 - 2.5)))
     }
 
     fn fit(periods: [f64; 2]) -> Option<Harmonics<2>> {
