@@ -304,7 +304,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             let scratch = &self.scratch;
             let residuals = (0..new).filter_map(move |j| {
                 let r = scratch.get(j)?.to_f64();
-                r.is_finite().then(|| (t0 + CELL_S * j as f64, r))
+                r.is_finite().then_some((t0 + CELL_S * j as f64, r))
             });
             *shift = h.phase(s, residuals);
             if let Some(delta) = *shift {
