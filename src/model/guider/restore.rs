@@ -10,10 +10,12 @@
 //! offset puts the frame there) or as close as they can, the gap left as
 //! cells without data (as a cloud leaves them); and their level is moved
 //! to meet the first observation, since the gear error the mount
-//! reconstructs starts again from 0 each night. With the phase unknown (or
-//! only the worm's), the new data is matched against the saved cells once
-//! half a worm period of it is in, and the saved cells move to the phase
-//! found (the phase search).
+//! reconstructs starts again from 0 each night. With the phase unknown,
+//! the new data is matched against the saved cells once half a worm period
+//! of it is in, and the saved cells move to the phase found (the phase
+//! search). With only the worm's (an index), each other stage's share of
+//! the saved cells is taken out and put back at its own phase
+//! (`harmonics`).
 
 use super::{Guider, DARK_VARIANCE};
 use crate::model::gp::grid::{CELL_S, GRID_CELLS};
@@ -129,8 +131,8 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     /// Take the learned state back from `snapshot` (checked by
     /// [`Snapshot::parse`]): the periods, stages and gates, and the cells,
     /// placed at the first frame as `phase` allows and, unless every
-    /// stage's phase is known, again by the phase search half a worm period
-    /// later. The fault counters stay. A snapshot of another stage count is refused
+    /// stage's phase is known, again by the phase search a little later
+    /// (half a worm period; with the worm's phase known, a tenth). The fault counters stay. A snapshot of another stage count is refused
     /// and nothing changes.
     pub fn restore(&mut self, snapshot: &Snapshot<'_>, phase: Phase) -> Result<(), SnapshotError> {
         if snapshot.stages() != N {
