@@ -132,7 +132,8 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     /// [`Snapshot::parse`]): the periods, stages and gates, and the cells,
     /// placed at the first frame as `phase` allows and, unless every
     /// stage's phase is known, again by the phase search a little later
-    /// (half a worm period; with the worm's phase known, a tenth). The fault counters stay. A snapshot of another stage count is refused
+    /// (half a worm period; with the worm's phase known, a tenth). The
+    /// fault counters stay. A snapshot of another stage count is refused
     /// and nothing changes.
     pub fn restore(&mut self, snapshot: &Snapshot<'_>, phase: Phase) -> Result<(), SnapshotError> {
         if snapshot.stages() != N {
