@@ -38,21 +38,13 @@ fn goals_with_the_gear_moved_while_off() {
         !(r.noise_px == 0.0 && ["C5", "C6", "C7", "C8"].contains(&r.case.as_str()))
             || r.restored_first30 <= 0.75 * r.cold_first30
     });
-    // With the index (the worm's phase; the others' found by the search
-    // a quarter worm period in): the goal of 1.15 x settled holds on C1, C2
-    // and C4 and on every row with 1 px noise (up to 1.12, C7); it does not
-    // on the other noise-free rows: 1.15-1.41 (C7).
-    check(&rows, "index > 1.45 x settled", |r| {
-        r.restored_index_first30 <= 1.45 * r.settled
+    // With the index (the worm's phase; each other stage's share of the
+    // saved cells put back at the phase the first tenth of a worm period
+    // shows): the goal is 1.15 x settled on every row; measured 0.76-1.12
+    // (C3 and C5 noise-free).
+    check(&rows, "index > 1.13 x settled", |r| {
+        r.restored_index_first30 <= 1.13 * r.settled
     });
-    check(
-        &rows,
-        "index > 1.15 x settled with noise or C1, C2, C4",
-        |r| {
-            !(r.noise_px > 0.0 || ["C1", "C2", "C4"].contains(&r.case.as_str()))
-                || r.restored_index_first30 <= 1.15 * r.settled
-        },
-    );
 }
 
 #[test]

@@ -179,7 +179,7 @@ pub struct Guider<S: Scalar, const N: usize = 2> {
     /// (`restore`).
     resume: Option<restore::Resume>,
     /// Restored data waiting for the phase search (`restore`).
-    phase_search: Option<restore::PhaseSearch>,
+    phase_search: Option<restore::PhaseSearch<N>>,
 }
 
 // The model-state budget (docs/reference.md, Goals): the board's 128 KiB of

@@ -65,9 +65,12 @@ pub enum Phase {
     Known { gear_time_offset_s: f64 },
     /// The worm's phase known, the other stages' not (a worm-index
     /// sensor): as [`Known`](Self::Known), with an offset that is right
-    /// modulo the worm's period. The saved data is placed at the worm's
-    /// phase, with the shortest gap; the other stages' phases are found
-    /// as for [`Unknown`](Self::Unknown).
+    /// modulo the worm's period. The saved data goes right before the
+    /// first frame with the worm's share at its phase; each other stage's
+    /// share is put back at the phase the first tenth of a worm period of
+    /// new data shows (a stage that cannot be told from the worm's
+    /// harmonics over the saved span: the data at the worm's phase, the
+    /// others placed by the search of [`Unknown`](Self::Unknown)).
     Worm { gear_time_offset_s: f64 },
     /// Unknown (neither): the periods, stages and gates are kept as the
     /// prior, and the phase is found again by matching the first half worm

@@ -193,13 +193,20 @@ impl<S: Scalar> Grid<S> {
     /// Add `by` to the gear error of the held cells `cells` (0 = oldest; a
     /// change of level), and to the open cell's if they reach the newest.
     pub fn shift_gear(&mut self, cells: core::ops::Range<usize>, by: f64) {
-        let by_s = S::from_f64(by);
+        self.shift_gear_with(cells, |_| by);
+    }
+
+    /// Add `by(i)` to the gear error of each held cell `i` of `cells` (0 =
+    /// oldest); if they reach the newest, the open cell's too, by
+    /// `by(len)`.
+    pub fn shift_gear_with(&mut self, cells: core::ops::Range<usize>, by: impl Fn(usize) -> f64) {
         let end = cells.end.min(self.len);
         for i in cells.start..end {
             let k = (self.head + i) % GRID_CELLS;
-            self.gear[k] += by_s;
+            self.gear[k] += S::from_f64(by(i));
         }
         if end == self.len {
+            let by = by(self.len);
             self.anchor_gear += by;
             self.gear_sum += by * (self.last_time - (self.cell_end - CELL_S));
         }
