@@ -108,9 +108,10 @@ impl<const N: usize> Learner<N> {
     /// Write the learned model into `out` (at most
     /// [`SNAPSHOT_MAX`](crate::model::snapshot::SNAPSHOT_MAX) bytes for
     /// two stages) for the store; returns the length. Not per frame: it
-    /// reads a thousand cells. Refused for half a worm period after a
-    /// restore with the phase unknown or only the worm's
-    /// (`SnapshotError::Placing`): keep the previous save then.
+    /// reads a thousand cells. Refused after a restore until the saved
+    /// data is placed (`SnapshotError::Placing`): half a worm period with
+    /// the phase unknown, a tenth with only the worm's (a quarter where no
+    /// stage can be taken apart). Keep the previous save then.
     pub fn snapshot(&self, out: &mut [u8]) -> Result<usize, SnapshotError> {
         self.guider.snapshot(out)
     }
