@@ -74,6 +74,16 @@ pub fn open_loop_rms(case: &Case) -> f64 {
     run(case, &mut OpenLoop, Noise::None)
 }
 
+/// A table's cell: one noise-free run when `sigma_px` is 0, else
+/// [`mean_noisy_rms`].
+pub fn rms_at<A: GuideAlgorithm>(case: &Case, sigma_px: f64, make: impl Fn() -> A + Sync) -> f64 {
+    if sigma_px == 0.0 {
+        run(case, &mut make(), Noise::None)
+    } else {
+        mean_noisy_rms(case, sigma_px, make)
+    }
+}
+
 /// Mean residual RMS over [`NOISY_SEEDS`] with N(0, sigma^2) noise; `make`
 /// builds a fresh guide algorithm for each seed. The seeds run in parallel;
 /// their residuals are added in seed order, so the mean does not depend on

@@ -3,7 +3,7 @@
 //! stages) and MKGP3 (three).
 
 use crate::cases::Case;
-use crate::closed_loop::{self, Noise};
+use crate::closed_loop;
 use crate::guide_algorithm::{GuideAlgorithm, Hysteresis};
 use crate::models::{self, Model};
 use rayon::prelude::*;
@@ -38,11 +38,7 @@ fn make(column: Column) -> Box<dyn GuideAlgorithm> {
 /// Residual RMS of `column` on `case` with `sigma_px` of noise (0: one
 /// noise-free run).
 fn rms(case: &Case, sigma_px: f64, column: Column) -> f64 {
-    if sigma_px == 0.0 {
-        closed_loop::run(case, &mut make(column), Noise::None)
-    } else {
-        closed_loop::mean_noisy_rms(case, sigma_px, || make(column))
-    }
+    closed_loop::rms_at(case, sigma_px, || make(column))
 }
 
 /// Compute the table, one row per case and noise level, in that order; the

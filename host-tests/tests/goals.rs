@@ -163,7 +163,7 @@ fn replay_gains_at_least_indigo() {
 /// the reactive 0.618-0.629 px with 1 px of noise.
 #[test]
 fn mkgp_never_above_reactive_on_long_worms() {
-    use host_tests::closed_loop::{self, Noise};
+    use host_tests::closed_loop;
     use host_tests::data::data_dir;
     use rayon::prelude::*;
     let cases =
@@ -176,11 +176,7 @@ fn mkgp_never_above_reactive_on_long_worms() {
                 Box::new(Hysteresis::paper())
             }
         };
-        if noise_px == 0.0 {
-            closed_loop::run(case, &mut make(), Noise::None)
-        } else {
-            closed_loop::mean_noisy_rms(case, noise_px, make)
-        }
+        closed_loop::rms_at(case, noise_px, make)
     };
     let failures: Vec<String> = cases
         .par_iter()

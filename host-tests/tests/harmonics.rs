@@ -10,7 +10,7 @@
 //! H10 and H11: true harmonics only) MKGP stays at PPEC.
 
 use host_tests::cases;
-use host_tests::closed_loop::{self, Noise};
+use host_tests::closed_loop;
 use host_tests::data::data_dir;
 use host_tests::models::{self, Model};
 use rayon::prelude::*;
@@ -26,12 +26,7 @@ const UNCHANGED_PX: f64 = 0.002;
 const NOTHING_TO_ADMIT: [&str; 4] = ["H3", "H8", "H10", "H11"];
 
 fn rms(case: &cases::Case, noise_px: f64, model: Model) -> f64 {
-    let make = || models::algorithm(model, None, None);
-    if noise_px == 0.0 {
-        closed_loop::run(case, &mut make(), Noise::None)
-    } else {
-        closed_loop::mean_noisy_rms(case, noise_px, make)
-    }
+    closed_loop::rms_at(case, noise_px, || models::algorithm(model, None, None))
 }
 
 #[test]

@@ -6,7 +6,7 @@
 //! measured 0.834, T4) and 0.97 x with 1 px (worst 0.962, T4).
 
 use host_tests::cases;
-use host_tests::closed_loop::{self, Noise};
+use host_tests::closed_loop;
 use host_tests::data::data_dir;
 use host_tests::models::{self, Model};
 use rayon::prelude::*;
@@ -17,12 +17,7 @@ const RATIO_NOISE_FREE: f64 = 0.85;
 const RATIO_NOISY: f64 = 0.97;
 
 fn rms(case: &cases::Case, noise_px: f64, model: Model) -> f64 {
-    let make = || models::algorithm(model, None, None);
-    if noise_px == 0.0 {
-        closed_loop::run(case, &mut make(), Noise::None)
-    } else {
-        closed_loop::mean_noisy_rms(case, noise_px, make)
-    }
+    closed_loop::rms_at(case, noise_px, || models::algorithm(model, None, None))
 }
 
 #[test]
