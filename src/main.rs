@@ -24,7 +24,7 @@
 //!   reach the guiding task through pipes, and the guiding task interprets
 //!   them on the loop (`hal::serial` has the pins).
 //! - **Thread mode** (lowest): the learning task
-//!   ([`firmware::learning_task`]) runs the model, a `Learner<2>` in a
+//!   ([`firmware::learning_task`]) runs the model, a `Learner<STAGES>` in a
 //!   static, once per frame, and signals the feed-forward to the guiding
 //!   task, which installs it at its next wake-up (within `RATE_UPDATE_US`).
 //!   The status log ([`firmware::log`]) and the LED run here too. Everything
@@ -70,8 +70,8 @@ const TIME_DRIVER_PRIORITY: Priority = Priority::P1;
 const WATCHDOG_TIMEOUT_US: u32 = 4_000_000;
 /// Where RAM starts (memory.x); flip-link puts the bottom of the stack here.
 const RAM_ORIGIN: u32 = 0x2000_0000;
-/// Periodic stages of the gear-error model: the worm and one more (MKGP).
-pub(crate) const STAGES: usize = 2;
+/// Periodic stages of the gear-error model (the library's choice).
+pub(crate) use mkgp_mount::mount::learner::FIRMWARE_STAGES as STAGES;
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {

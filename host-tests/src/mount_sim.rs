@@ -3,7 +3,7 @@
 //! 127.0.0.1) for real LX200 clients: INDI's `indi_lx200generic`, KStars,
 //! PHD2 through INDI.
 //!
-//! The mount is `st4_sim`'s [`Rig`] (the same `ControlLoop`, `Learner<2>`
+//! The mount is `st4_sim`'s [`Rig`] (the same `ControlLoop`, `Learner<FIRMWARE_STAGES>`
 //! and step generators as `guide-sim st4`). Its own simulated camera and
 //! PHD2-like guider pulse the ST4 input unless [`Options::st4_guider`] is
 //! off, so that the mount learns with no client guiding (a demo for

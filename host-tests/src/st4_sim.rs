@@ -49,7 +49,7 @@ use mkgp_mount::control_loop::{ControlLoop, FrameRecord};
 use mkgp_mount::mount::config::{Mount, MountConfig, SIDEREAL_ARCSEC_PER_S};
 use mkgp_mount::mount::frame::{Frame, Rates};
 use mkgp_mount::mount::guiding::{Guiding, GuidingCounters, FRAME_QUEUE};
-use mkgp_mount::mount::learner::{Learner, LearnerCounters};
+use mkgp_mount::mount::learner::{Learner, LearnerCounters, FIRMWARE_STAGES};
 use mkgp_mount::mount::st4::{Line, St4Counters};
 use mkgp_mount::port::mount_port::StepCounts;
 use mkgp_mount::port::{Interpreter, ReplySink};
@@ -114,14 +114,14 @@ pub enum Firmware {
     GuiderOnly,
     /// `Learner<1>`.
     Ppec,
-    /// `Learner<2>`.
+    /// `Learner<FIRMWARE_STAGES>`.
     Mkgp,
 }
 
 enum AnyLearner {
     None,
     One(Box<Learner<1>>),
-    Two(Box<Learner<2>>),
+    Mkgp(Box<Learner<FIRMWARE_STAGES>>),
 }
 
 impl AnyLearner {
@@ -133,7 +133,7 @@ impl AnyLearner {
                 let ff = l.learn(f);
                 Some(LearnedFrame::of(l, &f, ff))
             }
-            AnyLearner::Two(l) => {
+            AnyLearner::Mkgp(l) => {
                 let ff = l.learn(f);
                 Some(LearnedFrame::of(l, &f, ff))
             }
@@ -143,7 +143,7 @@ impl AnyLearner {
         match self {
             AnyLearner::None => LearnerSummary::default(),
             AnyLearner::One(l) => LearnerSummary::of(l),
-            AnyLearner::Two(l) => LearnerSummary::of(l),
+            AnyLearner::Mkgp(l) => LearnerSummary::of(l),
         }
     }
 
@@ -151,7 +151,7 @@ impl AnyLearner {
         match self {
             AnyLearner::None => LearnerCounters::default(),
             AnyLearner::One(l) => l.counters(),
-            AnyLearner::Two(l) => l.counters(),
+            AnyLearner::Mkgp(l) => l.counters(),
         }
     }
 
@@ -159,7 +159,7 @@ impl AnyLearner {
         match self {
             AnyLearner::None => {}
             AnyLearner::One(l) => l.reset(),
-            AnyLearner::Two(l) => l.reset(),
+            AnyLearner::Mkgp(l) => l.reset(),
         }
     }
 }
@@ -312,7 +312,7 @@ impl Rig {
         let learner = match firmware {
             Firmware::GuiderOnly => AnyLearner::None,
             Firmware::Ppec => AnyLearner::One(Box::new(Learner::new(&mount))),
-            Firmware::Mkgp => AnyLearner::Two(Box::new(Learner::new(&mount))),
+            Firmware::Mkgp => AnyLearner::Mkgp(Box::new(Learner::new(&mount))),
         };
         let tick_hz = mount.config().step_tick_hz;
         let mut ra = AxisStepper::new(mount.max_ra_steps_per_s(), tick_hz);
@@ -376,9 +376,9 @@ impl Rig {
 
     /// The firmware's two-stage learner (`Firmware::Mkgp`), e.g. to save
     /// or restore its model.
-    pub fn mkgp_learner(&mut self) -> Option<&mut Learner<2>> {
+    pub fn mkgp_learner(&mut self) -> Option<&mut Learner<FIRMWARE_STAGES>> {
         match &mut self.learning.learner {
-            AnyLearner::Two(l) => Some(l),
+            AnyLearner::Mkgp(l) => Some(l),
             _ => None,
         }
     }

@@ -169,25 +169,30 @@ impl<S: Scalar, const CAP: usize, const TRI: usize> Ldlt<S, CAP, TRI> {
         Ok(())
     }
 
-    /// Solve `A x = b` in place, with `A` factored. `b.len()` must be `dim()`.
-    pub fn solve(&self, b: &mut [S]) {
+    /// Solve `A x = b` in place, with `A` factored. `b.len()` must be
+    /// `dim()`. Storage is read with checked slices
+    /// ([`FactorError::Storage`]), so that no bounds check can panic.
+    pub fn solve(&self, b: &mut [S]) -> Result<(), FactorError> {
         let n = self.n.min(b.len());
-        for i in 0..n {
+        let l = |i: usize| {
             let ri = row_start(i);
-            let s = dot(&self.a[ri..ri + i], &b[..i]);
-            b[i] -= s;
+            self.a.get(ri..ri + i).ok_or(FactorError::Storage)
+        };
+        for i in 0..n {
+            let (head, tail) = b.split_at_mut(i);
+            tail[0] -= dot(l(i)?, head);
         }
         for (i, bi) in b.iter_mut().enumerate().take(n) {
-            *bi /= self.a[row_start(i) + i];
+            *bi /= *self.a.get(row_start(i) + i).ok_or(FactorError::Storage)?;
         }
         for i in (0..n).rev() {
-            let ri = row_start(i);
             let (head, tail) = b.split_at_mut(i);
             let xi = tail[0];
-            for (bk, &l) in head.iter_mut().zip(&self.a[ri..ri + i]) {
-                *bk -= l * xi;
+            for (bk, &lk) in head.iter_mut().zip(l(i)?) {
+                *bk -= lk * xi;
             }
         }
+        Ok(())
     }
 
     /// Solve for three right-hand sides at once (the inference's `y`, `1`
@@ -282,7 +287,7 @@ mod tests {
         }
         f.factor().unwrap();
         let mut x = b;
-        f.solve(&mut x);
+        f.solve(&mut x).unwrap();
         let r = naive_solve(&m, &b);
         for i in 0..6 {
             assert!(

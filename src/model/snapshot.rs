@@ -32,11 +32,15 @@
 /// ([`SnapshotError::Version`]): the model then starts cold.
 pub const FORMAT_VERSION: u16 = 1;
 /// Cells kept: the newest 1,000 of the grid (5,000 s, 83 min: more than 11
-/// worm periods of 432 s), so that a snapshot of the two-stage model fits
+/// worm periods of 432 s), so that a snapshot of a three-stage model fits
 /// the store's ~8 KiB record ([`SNAPSHOT_MAX`]).
 pub const SNAPSHOT_CELLS: usize = 1000;
-/// Largest snapshot of the firmware's two-stage model: 8,104 bytes.
-pub const SNAPSHOT_MAX: usize = snapshot_len(2, SNAPSHOT_CELLS);
+/// Stages of the largest model a snapshot buffer is sized for: the
+/// firmware's (`mount::learner::FIRMWARE_STAGES` asserts it fits).
+pub const SNAPSHOT_MAX_STAGES: usize = 3;
+/// Largest snapshot, of a three-stage model: 8,144 bytes. A model of fewer
+/// stages writes less ([`snapshot_len`]).
+pub const SNAPSHOT_MAX: usize = snapshot_len(SNAPSHOT_MAX_STAGES, SNAPSHOT_CELLS);
 
 const MAGIC: [u8; 4] = *b"MKGS";
 const HEADER_LEN: usize = 20;
@@ -435,9 +439,13 @@ mod tests {
 
     #[test]
     fn size_bound_is_what_the_docs_say() {
-        assert_eq!(SNAPSHOT_MAX, 8104);
+        assert_eq!(SNAPSHOT_MAX, 8144);
+        assert_eq!(snapshot_len(2, SNAPSHOT_CELLS), 8104);
         let mut buf = [0u8; SNAPSHOT_MAX];
-        assert_eq!(payload(SNAPSHOT_CELLS, &mut buf), SNAPSHOT_MAX);
+        assert_eq!(
+            payload(SNAPSHOT_CELLS, &mut buf),
+            snapshot_len(2, SNAPSHOT_CELLS)
+        );
     }
 
     #[test]

@@ -12,9 +12,19 @@ use core::mem::MaybeUninit;
 use crate::model::guider::{Faults, Guider, GuiderConfig, DITHER_FRAMES};
 use crate::model::in_place::{build, uninit_field};
 use crate::model::numeric::clamp;
-use crate::model::snapshot::{Phase, Snapshot, SnapshotError};
+use crate::model::snapshot::{Phase, Snapshot, SnapshotError, SNAPSHOT_MAX, SNAPSHOT_MAX_STAGES};
 use crate::mount::config::Mount;
 use crate::mount::frame::{FeedForward, Frame, FrameKind};
+use crate::persist::MODEL_RECORD_MAX;
+
+/// Periodic stages of the firmware's model (the worm and two more), and of
+/// the simulators that stand for it. Chosen by measurement: the same as two
+/// stages on the paper's cases, far better on three-stage gear trains, and
+/// within the Cortex-M4's budgets (docs/decisions.md, "Stages in the
+/// firmware").
+pub const FIRMWARE_STAGES: usize = 3;
+// The firmware's snapshot fits the buffers sized for it and the store's record.
+const _: () = assert!(FIRMWARE_STAGES <= SNAPSHOT_MAX_STAGES && SNAPSHOT_MAX <= MODEL_RECORD_MAX);
 
 /// What the learner did, counted since construction.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -106,8 +116,8 @@ impl<const N: usize> Learner<N> {
     }
 
     /// Write the learned model into `out` (at most
-    /// [`SNAPSHOT_MAX`](crate::model::snapshot::SNAPSHOT_MAX) bytes for
-    /// two stages) for the store; returns the length. Not per frame: it
+    /// [`SNAPSHOT_MAX`](crate::model::snapshot::SNAPSHOT_MAX) bytes) for
+    /// the store; returns the length. Not per frame: it
     /// reads a thousand cells. Refused after a restore until the saved
     /// data is placed (`SnapshotError::Placing`): half a worm period with
     /// the phase unknown, a tenth with only the worm's (a quarter where no

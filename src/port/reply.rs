@@ -4,7 +4,7 @@
 use heapless::Vec;
 
 /// The longest reply. LX200 replies are under 60 bytes; a telemetry line
-/// with two stages takes up to 280; our counter lists are cut to fit (with
+/// with three stages takes up to 300; our counter lists are cut to fit (with
 /// `more=`, docs/port.md). RAM: this many bytes on the stack while a
 /// command is answered, none kept.
 pub const REPLY_CAPACITY: usize = 320;

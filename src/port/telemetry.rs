@@ -36,8 +36,8 @@ const STAGE_FIELD_MAX: usize = 7 + 3 * 10 + 2;
 
 /// `~T t_ms=.. gear_ms=.. kind=.. obs_mas=.. pulse_mas=.. applied_mas=..
 /// pred_mas=.. ff_mas_s=.. learn_pm=.. stage=PERIOD_MS,AMP_MAS,GATE_PM
-/// ...#`, one `stage=` per stage that fits the reply: two always do, with
-/// every number at its widest.
+/// ...#`, one `stage=` per stage that fits the reply: the firmware's three
+/// always do, with every number at its widest.
 pub fn write(frame: &TelemetryFrame, out: &mut Reply) {
     out.text(b"~T t_ms=").uint(frame.time_ms);
     out.text(b" gear_ms=").uint(frame.gear_time_ms);

@@ -78,7 +78,7 @@ enum Command {
     /// case, a camera exposing every 2 s, a PHD2-like hysteresis guider (0.7, 0.1,
     /// min move 0.2) sending ST4 pulses at 0.5x sidereal through the firmware's
     /// St4 and Guiding; guider only, guider + firmware PPEC (Learner<1>) and
-    /// guider + firmware MKGP (Learner<2>). Pointing RMS (arcsec = px) over
+    /// guider + firmware MKGP (Learner<FIRMWARE_STAGES>, three stages). Pointing RMS (arcsec = px) over
     /// t >= 3600 s of 3 h runs; noise 0 and 1 px (seeds 1-3, mean) unless
     /// --noise PX picks one level; --case ID runs one case. The guider's
     /// aggressiveness, exposure, minimum move and calibration (its believed
@@ -102,7 +102,7 @@ enum Command {
     Nights(NightsArgs),
     /// A virtual mount for LX200 clients: the firmware's loop on a pty, in real time
     ///
-    /// The firmware's loop (ControlLoop, Learner<2>, the step generators, as in
+    /// The firmware's loop (ControlLoop, Learner<FIRMWARE_STAGES>, the step generators, as in
     /// `st4`) on a virtual mount whose RA error is a synthetic case (default
     /// C1), in real time (or --speed X times it), with the command port (LX200
     /// and our `:~` commands, docs/port.md) served on a pseudo-terminal linked

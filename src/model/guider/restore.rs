@@ -548,7 +548,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
 #[cfg(test)]
 mod tests {
     use crate::model::guider::{Guider, GuiderConfig};
-    use crate::model::snapshot::{Phase, Snapshot, SNAPSHOT_MAX};
+    use crate::model::snapshot::{snapshot_len, Phase, Snapshot, SNAPSHOT_CELLS, SNAPSHOT_MAX};
 
     const TAU: f64 = 2.0 * core::f64::consts::PI;
 
@@ -602,7 +602,7 @@ mod tests {
     fn night_2(g: &Guider<f32, 2>, phase: f64) -> (f64, f64, f64) {
         let mut buf = [0u8; SNAPSHOT_MAX];
         let n = g.snapshot(&mut buf).unwrap();
-        assert_eq!(n, SNAPSHOT_MAX);
+        assert_eq!(n, snapshot_len(2, SNAPSHOT_CELLS));
         let snapshot = Snapshot::parse(&buf[..n], 2).unwrap();
         let fresh = || std::boxed::Box::new(Guider::<f32, 2>::new(*g.config()));
         let mut known = fresh();
@@ -728,7 +728,7 @@ mod tests {
         assert_eq!(r.snapshot(&mut out), Err(SnapshotError::Placing));
         // Half a worm period (216 s) and a frame.
         run(&mut r, 777.0, 0.0, 100.0, 240.0, 0.0);
-        assert_eq!(r.snapshot(&mut out), Ok(SNAPSHOT_MAX));
+        assert_eq!(r.snapshot(&mut out), Ok(snapshot_len(2, SNAPSHOT_CELLS)));
     }
 
     /// Nothing measured by the time of the search: the saved data, at no

@@ -6,7 +6,7 @@
 //! no panic call survives optimisation in anything this binary runs:
 //! `Guider<f32, 2>`'s `frame`, `dark_frame` and `dithered` (the PC-guider
 //! entry points), the mount's `MountConfig::validate`, `Learner::new`,
-//! `Learner::learn` (which runs `Guider::observe`), `Learner::snapshot`
+//! `Learner::learn` of the firmware's stages (which runs `Guider::observe`), `Learner::snapshot`
 //! and `Learner::restore` (and the first frames after it), and the
 //! command port as the guiding task runs it (`Interpreter::feed` on a
 //! `PortMount`, `ControlLoop::wake`, a telemetry line), on inputs the
@@ -36,7 +36,7 @@ use mkgp_mount::model::guider::{Guider, GuiderConfig};
 use mkgp_mount::model::snapshot::{Phase, SNAPSHOT_MAX};
 use mkgp_mount::mount::config::{Mount, MountConfig};
 use mkgp_mount::mount::frame::{FeedForward, Frame, FrameKind};
-use mkgp_mount::mount::learner::Learner;
+use mkgp_mount::mount::learner::{Learner, FIRMWARE_STAGES};
 use mkgp_mount::port::mount_port::{Identity, StepCounts};
 use mkgp_mount::port::{Interpreter, ReplySink};
 use mkgp_mount::safety::reset_cause::ResetCause;
@@ -67,7 +67,7 @@ fn main() -> ! {
     let Ok(mount) = black_box(MountConfig::default()).validate() else {
         exit(false)
     };
-    let mut learner: Learner<2> = Learner::new(&mount);
+    let mut learner: Learner<FIRMWARE_STAGES> = Learner::new(&mount);
     let mut applied = 0.0f32;
     let mut sum = 0.0f32;
     for k in 0..FRAMES {
@@ -179,7 +179,7 @@ impl EdgeSource for NoEdges {
 /// every value) through `Interpreter::feed` on a `PortMount`, each chunk
 /// followed by `ControlLoop::wake`, and a learned frame's telemetry.
 /// Returns the replies counted.
-fn command_port(mount: &Mount, learner: &Learner<2>) -> u32 {
+fn command_port(mount: &Mount, learner: &Learner<FIRMWARE_STAGES>) -> u32 {
     const CONNECT: &[u8] = b"\x06:GR#:GD#:U#:Gc#:GM#:GT#:Gt#:Gg#:GG#:GL#:GC#:Sr06:00:00#:Sd+10*00:00#:CM#\
         :RG#:Mw#:Qw#:Mgn1000#:RS#:Me#:Q#:Te#:Td#:GU#:GVP#:GVN#:GVD#:GVT#:~L#:~S0#:~Cs#:~Cg#:~Cl#:~Cf#:~Cp#\
         :~F0#:~F1#:~T1#:~R#:~V#:Mgs99999#:Sr99:99:99#\

@@ -198,7 +198,7 @@ impl<const N: usize> Harmonics<N> {
         }
         normal.factor().ok()?;
         let solution = rhs.get_mut(..terms)?;
-        normal.solve(solution);
+        normal.solve(solution).ok()?;
         if !solution.iter().all(|c| c.is_finite()) {
             return None;
         }
