@@ -116,7 +116,7 @@ impl<const N: usize> Learner<N> {
     }
 
     /// Write the learned model into `out` (at most
-    /// [`SNAPSHOT_MAX`](crate::model::snapshot::SNAPSHOT_MAX) bytes) for
+    /// [`SNAPSHOT_MAX`] bytes) for
     /// the store; returns the length. Not per frame: it
     /// reads a thousand cells. Refused after a restore until the saved
     /// data is placed (`SnapshotError::Placing`): half a worm period with
