@@ -7,6 +7,7 @@
 mod common;
 
 use common::process::{guide_sim, Group};
+use mkgp_mount::mount::learner::FIRMWARE_STAGES;
 use std::fs::{File, OpenOptions};
 use std::io::{ErrorKind, Read, Write};
 use std::os::unix::fs::OpenOptionsExt;
@@ -145,7 +146,7 @@ fn the_virtual_mount_answers_lx200_on_its_pty() {
     assert!(g.starts_with("ra_pulses=1 dec_pulses=1 frames="), "{g}");
     let l = ask(&mut pty, ":~L#", 1);
     assert!(
-        l.starts_with("learn_pm=") && l.ends_with(" stages=2 from=cold#"),
+        l.starts_with("learn_pm=") && l.ends_with(&format!(" stages={FIRMWARE_STAGES} from=cold#")),
         "{l}"
     );
     assert_eq!(
