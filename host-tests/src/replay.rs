@@ -24,8 +24,13 @@
 //!   (PHD2's defaults; min moves 0.15 or 0.1 do not reproduce the figures).
 
 use crate::data::Error;
-use crate::guide_algorithm::GuideAlgorithm;
+use crate::guide_algorithm::{GuideAlgorithm, Hysteresis};
+use crate::models::{self, Model};
 use crate::phd2_log::GuideLog;
+
+/// Control and prediction gains of the replay (PHD2's performance test).
+pub const CONTROL_GAIN: f64 = 0.7;
+pub const PREDICTION_GAIN: f64 = 0.5;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ReplayResult {
@@ -69,6 +74,20 @@ pub fn run(log: &GuideLog, algorithm: &mut dyn GuideAlgorithm) -> Result<ReplayR
         frames,
         rms: (sum_sq / frames as f64).sqrt(),
     })
+}
+
+/// `model` on `log` with the replay's gains.
+pub fn run_model(log: &GuideLog, model: Model) -> Result<ReplayResult, Error> {
+    run(
+        log,
+        &mut *models::algorithm(model, Some(CONTROL_GAIN), Some(PREDICTION_GAIN)),
+    )
+}
+
+/// `model`'s gain in percent over PHD2's hysteresis 0.7 on `log`.
+pub fn gain_over_hysteresis(log: &GuideLog, model: Model) -> Result<f64, Error> {
+    let hysteresis = run(log, &mut Hysteresis::phd2_baseline())?;
+    Ok(gain_pct(run_model(log, model)?.rms, hysteresis.rms))
 }
 
 /// Improvement of `model_rms` over `baseline_rms` in percent:

@@ -138,13 +138,7 @@ fn replay_gains_at_least_indigo() {
     assert_eq!(logs.len(), INDIGO_GAIN_PCT.len());
     for (path, indigo) in logs.iter().zip(INDIGO_GAIN_PCT) {
         let log = phd2_log::load(path).unwrap_or_else(|e| panic!("{e}"));
-        let hyst = replay::run(&log, &mut Hysteresis::phd2_baseline()).unwrap();
-        let mkgp = replay::run(
-            &log,
-            &mut *models::algorithm(Model::Mkgp, Some(0.7), Some(0.5)),
-        )
-        .unwrap();
-        let gain = replay::gain_pct(mkgp.rms, hyst.rms);
+        let gain = replay::gain_over_hysteresis(&log, Model::Mkgp).unwrap();
         println!("{}: MKGP gain {gain:.3} % (INDIGO {indigo} %)", log.name());
         // INDIGO's figures are rounded to 0.01 %.
         assert!(

@@ -7,7 +7,7 @@ mod common;
 use common::TraceRow;
 use host_tests::data;
 use host_tests::guide_algorithm::{GuideAlgorithm, Hysteresis};
-use host_tests::models::{self, Model};
+use host_tests::models::Model;
 use host_tests::phd2_log::{self, GuideLog};
 use host_tests::replay;
 use mkgp_mount::model::guider::{Guider, GuiderConfig};
@@ -204,14 +204,7 @@ fn mkgp_chooses_the_reactive_law() {
     // MKGP's gain % over hysteresis 0.7 (`guide-sim replay`).
     let want = [0.73, 0.40, 12.26, 8.37, 4.03];
     for (name, want) in LOGS.iter().zip(want) {
-        let l = log(name);
-        let hyst = replay::run(&l, &mut Hysteresis::phd2_baseline()).unwrap();
-        let mkgp = replay::run(
-            &l,
-            &mut *models::algorithm(Model::Mkgp, Some(0.7), Some(0.5)),
-        )
-        .unwrap();
-        let gain = replay::gain_pct(mkgp.rms, hyst.rms);
+        let gain = replay::gain_over_hysteresis(&log(name), Model::Mkgp).unwrap();
         assert!(
             (gain - want).abs() < 0.005,
             "{name}: {gain:.3} % vs {want} %"

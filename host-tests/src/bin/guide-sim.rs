@@ -259,10 +259,6 @@ fn noise_px(s: &str) -> Result<f64, String> {
     }
 }
 
-/// Control and prediction gains of the replay (PHD2's performance test).
-const REPLAY_CONTROL_GAIN: f64 = 0.7;
-const REPLAY_PREDICTION_GAIN: f64 = 0.5;
-
 fn main() -> ExitCode {
     match Cli::parse().command {
         Command::Table(args) => cmd_table(args),
@@ -416,7 +412,7 @@ fn replay_algorithm(kind: Kind) -> Box<dyn GuideAlgorithm> {
     match kind {
         Kind::Hysteresis => Box::new(Hysteresis::phd2_baseline()),
         Kind::Model(m) => {
-            models::algorithm(m, Some(REPLAY_CONTROL_GAIN), Some(REPLAY_PREDICTION_GAIN))
+            models::algorithm(m, Some(replay::CONTROL_GAIN), Some(replay::PREDICTION_GAIN))
         }
     }
 }
