@@ -116,6 +116,7 @@ fn a_new_feed_forward_sets_the_rates_at_once() {
         rate_arcsec_per_s: 0.5,
         from_gear_s: 0.0,
         until_gear_s: 1e6,
+        pulse_share: crate::mount::frame::PulseShare::FULL,
     };
     let w = lp.wake(1_000, 0, &mut edges(&[]), Some(ff));
     let ra = w
@@ -203,16 +204,19 @@ fn random_input_keeps_the_rates_in_range() {
                 rate_arcsec_per_s: f32::NAN,
                 from_gear_s: 0.0,
                 until_gear_s: 1e9,
+                pulse_share: crate::mount::frame::PulseShare::FULL,
             }),
             1 => Some(FeedForward {
                 rate_arcsec_per_s: 1e30,
                 from_gear_s: 0.0,
                 until_gear_s: 1e9,
+                pulse_share: crate::mount::frame::PulseShare::FULL,
             }),
             2 => Some(FeedForward {
                 rate_arcsec_per_s: rng.below(200) as f32 / 100.0 - 1.0,
                 from_gear_s: 0.0,
                 until_gear_s: rng.below(100_000) as f64,
+                pulse_share: crate::mount::frame::PulseShare::FULL,
             }),
             _ => None,
         };
