@@ -143,3 +143,72 @@ impl SharedPulse {
         (t > now_us).then_some(t)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SHARE: PulseShare = PulseShare {
+        fraction: 0.25,
+        up_to_arcsec: 1.0,
+    };
+
+    /// Guide-rate µs carried out from `start` to `until` (exact: the rate
+    /// is constant between changes).
+    fn carried(p: &mut SharedPulse, end_us: u64, until_us: u64) -> f64 {
+        let mut t = 0;
+        let mut done = 0.0;
+        let mut ended = false;
+        while t < until_us {
+            let mut next = p.next_change_us(t).unwrap_or(until_us).min(until_us);
+            if !ended {
+                next = next.min(end_us);
+            }
+            done += p.guide(t) as f64 * (next - t) as f64;
+            t = next;
+            if t == end_us && !ended {
+                p.end(t);
+                ended = true;
+            }
+        }
+        done
+    }
+
+    #[test]
+    fn a_short_pulse_is_held_back_and_a_long_one_made_up() {
+        // 1 arcsec at 10 arcsec/s: damped for 100 ms.
+        let start = |make_up| {
+            SharedPulse::start(Direction::Plus, 0, SHARE, 10.0, make_up).expect("damped")
+        };
+        let mut p = start(1.0);
+        assert!((carried(&mut p, 80_000, 1_000_000) - 20_000.0).abs() < 1.0);
+        assert!(p.held_back());
+        // Long enough to make up within: 100 ms at 0.25, then 75 ms at 2x.
+        let mut p = start(1.0);
+        assert!((carried(&mut p, 750_000, 2_000_000) - 750_000.0).abs() < 2.0);
+        assert!(!p.held_back());
+        // Ends while making up: the guide rate runs on after the end.
+        for make_up in [1.0, 0.5, 0.01] {
+            let mut p = start(make_up);
+            let done = carried(&mut p, 120_000, 10_000_000);
+            assert!((done - 120_000.0).abs() < 2.0, "{make_up}: {done}");
+        }
+        // RA-: the same, negative.
+        let mut p = SharedPulse::start(Direction::Minus, 0, SHARE, 10.0, 0.5).unwrap();
+        assert!((carried(&mut p, 750_000, 2_000_000) + 750_000.0).abs() < 2.0);
+        // Full pulses need no share.
+        for share in [
+            PulseShare::FULL,
+            PulseShare {
+                fraction: f32::NAN,
+                ..SHARE
+            },
+            PulseShare {
+                up_to_arcsec: f32::INFINITY,
+                ..SHARE
+            },
+        ] {
+            assert!(SharedPulse::start(Direction::Plus, 0, share, 10.0, 1.0).is_none());
+        }
+    }
+}
