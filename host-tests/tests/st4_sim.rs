@@ -335,7 +335,10 @@ fn damping_is_earned_and_learning_stays_right() {
     let (mean_off, rms_off) = observation_error(&off);
     println!("observation error: on {mean_on:.3} / {rms_on:.3}, off {mean_off:.3} / {rms_off:.3}");
     assert!(mean_on.abs() < 0.1 && mean_off.abs() < 0.1);
-    assert!((rms_on / rms_off - 1.0).abs() < 0.1, "{rms_on} vs {rms_off}");
+    assert!(
+        (rms_on / rms_off - 1.0).abs() < 0.1,
+        "{rms_on} vs {rms_off}"
+    );
 }
 
 /// A PHD2 calibration (RA+ steps of 750 ms, RA- back, a 2.5 s step)
@@ -368,7 +371,10 @@ fn a_calibration_through_the_damped_loop_moves_the_mount_as_asked() {
         let moved = r.applied_arcsec() - before - feed_forward;
         let sign = if line == Line::RaPlus { 1.0 } else { -1.0 };
         let want = sign * guide * duration as f64 * 1e-6;
-        assert!((moved - want).abs() < 2.0 * step, "{line:?} {duration}: {moved} vs {want}");
+        assert!(
+            (moved - want).abs() < 2.0 * step,
+            "{line:?} {duration}: {moved} vs {want}"
+        );
     }
     assert!(r.guiding_counters().ra_pulses_made_up > made_up_before);
     let dec_before = r.dec_steps();

@@ -287,15 +287,14 @@ fn a_calibration_moves_the_mount_exactly_under_a_pulse_share() {
         until_gear_s: 1e9,
         pulse_share: share,
     };
-    let mut now = 0;
     let w = lp.wake(1_000, 0, &mut edges(&[]), Some(ff));
     ra.set_rate(w.rates.unwrap().ra_steps_per_s);
-    now = now.max(1_000);
+    let mut now = 1_000;
     let sid = m.sidereal_ra_steps_per_s_f64();
     let guide = f64::from(m.guide_ra_steps_per_s());
     // Steps beyond sidereal tracking at `t`.
     let beyond = |steps: i64, t: u64| steps as f64 - sid * t as f64 * 1e-6;
-    let mut run = |lp: &mut ControlLoop, ra: &mut _, now: &mut u64, line, ms: u64, at: u64| {
+    let run = |lp: &mut ControlLoop, ra: &mut _, now: &mut u64, line, ms: u64, at: u64| {
         let before = beyond(drive(lp, ra, now, &[], at), at);
         let end = at + ms * 1_000;
         let list = [(line, true, at), (line, false, end)];
@@ -316,7 +315,11 @@ fn a_calibration_moves_the_mount_exactly_under_a_pulse_share() {
         t = now + 1_000_000;
     }
     let c = lp.guiding().counters();
-    assert_eq!((c.ra_pulses_made_up, c.ra_pulses_held_back), (5, 0), "{c:?}");
+    assert_eq!(
+        (c.ra_pulses_made_up, c.ra_pulses_held_back),
+        (5, 0),
+        "{c:?}"
+    );
     // A guide pulse of 100 ms (0.75 arcsec, within 1.5): 0.3 of it.
     let moved = run(&mut lp, &mut ra, &mut now, Line::RaPlus, 100, t);
     let want = 0.3 * guide * 0.1;

@@ -177,9 +177,8 @@ mod tests {
     #[test]
     fn a_short_pulse_is_held_back_and_a_long_one_made_up() {
         // 1 arcsec at 10 arcsec/s: damped for 100 ms.
-        let start = |make_up| {
-            SharedPulse::start(Direction::Plus, 0, SHARE, 10.0, make_up).expect("damped")
-        };
+        let start =
+            |make_up| SharedPulse::start(Direction::Plus, 0, SHARE, 10.0, make_up).expect("damped");
         let mut p = start(1.0);
         assert!((carried(&mut p, 80_000, 1_000_000) - 20_000.0).abs() < 1.0);
         assert!(p.held_back());
