@@ -5,7 +5,7 @@
 
 use host_tests::cases::{self, Case};
 use host_tests::data::cases_file;
-use host_tests::st4_sim::{self, Firmware, Rig, Setup, Sky};
+use host_tests::st4_sim::{self, Firmware, GuiderSettings, Rig, Setup, Sky};
 use mkgp_mount::mount::config::{Field, MountConfig};
 use mkgp_mount::mount::frame::FrameKind;
 use mkgp_mount::mount::st4::Line;
@@ -31,7 +31,8 @@ fn assert_rates_sane(rig: &Rig) {
 
 /// Every case and noise level against the issue's bars. (C5 with 1 px
 /// measured 0.837 x guider alone until a found stage could move to its
-/// octave: seed 2 found the 77.5 s harmonic first. Now 0.798.)
+/// octave: seed 2 found the 77.5 s harmonic first: 0.798, and 0.633 with
+/// the pulse damping.)
 #[test]
 fn goals() {
     let cases = cases::load(&cases_file()).unwrap_or_else(|e| panic!("{e}"));
@@ -58,6 +59,20 @@ fn goals() {
         }
         if r.case == "C8" && r.noise_px > 0.0 {
             bar = Some(0.6);
+        }
+        // Issue 10, section 5 (half the gap to a perfect feed-forward behind
+        // full pulses): C7 met by the pulse damping (0.634, from 0.67); C6
+        // not (0.730, from 0.74: the model's own residual, which the
+        // guider's pulses must follow, is the limit there). C1-C4 with
+        // 1 px: 0.48-0.66 with damping, 0.87-0.93 without.
+        if r.noise_px > 0.0 {
+            match r.case.as_str() {
+                "C7" => bar = Some(0.635),
+                "C5" => bar = Some(0.64),
+                "C6" => bar = Some(0.735),
+                "C1" | "C2" | "C3" | "C4" => bar = Some(0.67),
+                _ => {}
+            }
         }
         if let Some(b) = bar {
             if ratio > b {
@@ -423,6 +438,45 @@ fn errors_no_model_explains_stay_below_the_guider_alone() {
             println!("{sky:?} {} noise {}: {ratio:.3}", r.case, r.noise_px);
             if ratio > 0.8 || r.fw_ppec > r.guider_only {
                 failures.push(format!("{sky:?} {} noise {}: {r:?}", r.case, r.noise_px));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// Issue 10, section 4: behind a guider more aggressive than the firmware
+/// assumes (aggressiveness 1.0, 1 s exposures, a calibration of 0.75), fw
+/// MKGP is at most 0.8 of the guider alone on C5-C8 with 1 px (0.60-0.72
+/// measured with the pulse damping; 0.71-0.94 without it).
+#[test]
+fn a_more_aggressive_guider_is_damped_to_the_goal() {
+    let cases: Vec<Case> = ["C5", "C6", "C7", "C8"].into_iter().map(case).collect();
+    let default = GuiderSettings::default();
+    let guiders = [
+        GuiderSettings {
+            aggressiveness: 1.0,
+            ..default
+        },
+        GuiderSettings {
+            exposure_s: 1.0,
+            ..default
+        },
+        GuiderSettings {
+            calibration: 0.75,
+            ..default
+        },
+    ];
+    let mut failures = Vec::new();
+    for guider in guiders {
+        let setup = Setup {
+            guider,
+            ..Setup::default()
+        };
+        for r in st4_sim::table_with(&cases, &[1.0], setup) {
+            let ratio = r.fw_mkgp / r.guider_only;
+            println!("{guider:?} {}: {ratio:.3}", r.case);
+            if ratio > 0.8 {
+                failures.push(format!("{guider:?} {}: {ratio:.3}", r.case));
             }
         }
     }

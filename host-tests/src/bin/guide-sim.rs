@@ -7,6 +7,7 @@
 //! guide-sim bench [--csv] [--host-only]
 //! guide-sim st4 [--case ID] [--cases FILE] [--noise PX] [--csv]
 //!               [--aggressiveness A] [--exposure S] [--min-move PX] [--calibration K]
+//!               [--drift A] [--walk W] [--bump B] [--least-pulse-share F]
 //! guide-sim nights [--case ID] [--cases FILE] [--noise PX] [--park] [--csv]
 //! guide-sim mount [--pty PATH] [--tcp PORT] [--case ID] [--cases FILE] [--noise PX]
 //!                 [--speed X] [--no-st4-guider]
