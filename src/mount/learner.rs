@@ -15,6 +15,7 @@ use crate::model::numeric::clamp;
 use crate::model::snapshot::{Phase, Snapshot, SnapshotError, SNAPSHOT_MAX, SNAPSHOT_MAX_STAGES};
 use crate::mount::config::Mount;
 use crate::mount::frame::{FeedForward, Frame, FrameKind};
+use crate::mount::guiding::damping::Damping;
 use crate::persist::MODEL_RECORD_MAX;
 
 /// Periodic stages of the firmware's model (the worm and two more), and of
@@ -25,6 +26,10 @@ use crate::persist::MODEL_RECORD_MAX;
 pub const FIRMWARE_STAGES: usize = 3;
 // The firmware's snapshot fits the buffers sized for it and the store's record.
 const _: () = assert!(FIRMWARE_STAGES <= SNAPSHOT_MAX_STAGES && SNAPSHOT_MAX <= MODEL_RECORD_MAX);
+
+/// The model's blend weight from which its feed-forward counts as trusted
+/// in full, and pulse damping may be earned.
+const TRUSTED_BLEND: f64 = 0.9;
 
 /// What the learner did, counted since construction.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -51,6 +56,7 @@ pub struct Learner<const N: usize> {
     cadence_s: f32,
     last_gear_s: Option<f64>,
     settling: u8,
+    damping: Damping,
     counters: LearnerCounters,
 }
 
@@ -85,8 +91,9 @@ impl<const N: usize> Learner<N> {
         uninit_field!(slot, cadence_s).write(mount.config().guide_cadence_s);
         uninit_field!(slot, last_gear_s).write(None);
         uninit_field!(slot, settling).write(0);
+        uninit_field!(slot, damping).write(Damping::new(mount.config().least_pulse_share));
         uninit_field!(slot, counters).write(LearnerCounters::default());
-        // SAFETY: all 6 fields are written.
+        // SAFETY: all 7 fields are written.
         unsafe { slot.assume_init_mut() }
     }
 
@@ -113,6 +120,12 @@ impl<const N: usize> Learner<N> {
         self.guider.reset();
         self.last_gear_s = None;
         self.settling = 0;
+        self.damping.reset();
+    }
+
+    /// The share of the RA guide pulses carried out now (1: in full).
+    pub fn pulse_share(&self) -> f32 {
+        self.damping.fraction()
     }
 
     /// Write the learned model into `out` (at most
@@ -136,6 +149,7 @@ impl<const N: usize> Learner<N> {
         self.guider.restore(&snapshot, phase)?;
         self.last_gear_s = None;
         self.settling = 0;
+        self.damping.reset();
         Ok(())
     }
 
@@ -203,10 +217,18 @@ impl<const N: usize> Learner<N> {
         self.count(observation.is_some() && !self.refused_since(faults_before));
         let rate = change as f64 / (next + d);
         let rate = if rate.is_finite() { rate as f32 } else { 0.0 };
+        // A guide frame's pulse (0 when the guider sent none); the others
+        // (dithers, settling, silence) are carried out in full.
+        let pulse = match frame.kind {
+            FrameKind::Measured if !settling => Some(frame.pulse_arcsec),
+            _ => None,
+        };
+        let trusted = self.guider.blend_weight() >= TRUSTED_BLEND;
         FeedForward {
             rate_arcsec_per_s: rate,
             from_gear_s: t,
             until_gear_s: t + 3.0 * next.max(cadence),
+            pulse_share: self.damping.frame(pulse, trusted),
         }
     }
 }
