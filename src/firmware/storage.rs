@@ -12,9 +12,9 @@ use static_cell::StaticCell;
 
 use hal::storage::StorageFlash;
 use mkgp_mount::control_loop::port_mount::StoreRequest;
-use mkgp_mount::model::snapshot::{Phase, SnapshotError, FORMAT_VERSION, SNAPSHOT_MAX};
+use mkgp_mount::model::snapshot::{Phase, SnapshotError};
 use mkgp_mount::mount::config::MountConfig;
-use mkgp_mount::mount::learner::Learner;
+use mkgp_mount::mount::learner::{Learner, MODEL_ONLY_FORMAT, RECORD_FORMAT, RECORD_MAX};
 use mkgp_mount::mount::worm_index::WormIndex;
 use mkgp_mount::persist::{Erase, LoadError, Park, SaveError, Store};
 use mkgp_mount::port::mount_port::ModelOrigin;
@@ -136,6 +136,46 @@ pub async fn boot_park(store: &mut FirmwareStore) -> Option<Park> {
     }
 }
 
+/// Why no model was restored.
+enum NotRestored {
+    NothingStored,
+    /// Unreadable, or of another firmware's format.
+    Unreadable,
+    /// Refused by its checks.
+    Refused,
+}
+
+/// Restores the learner from the stored record, of the current format or
+/// the older one without the pulse share (read with the share unknown).
+async fn restore_stored(
+    store: &mut FirmwareStore,
+    learner: &mut Learner<STAGES>,
+    phase: Phase,
+) -> Result<(), NotRestored> {
+    let not_loaded = |e| match e {
+        LoadError::NothingStored => NotRestored::NothingStored,
+        _ => NotRestored::Unreadable,
+    };
+    let format = match flash_operation(store.load_model(RECORD_FORMAT)).await {
+        Ok(bytes) => {
+            return learner
+                .restore(bytes, RECORD_FORMAT, phase)
+                .map_err(|_| NotRestored::Refused)
+        }
+        Err(LoadError::Format {
+            found: MODEL_ONLY_FORMAT,
+            ..
+        }) => MODEL_ONLY_FORMAT,
+        Err(e) => return Err(not_loaded(e)),
+    };
+    let bytes = flash_operation(store.load_model(format))
+        .await
+        .map_err(not_loaded)?;
+    learner
+        .restore(bytes, format, phase)
+        .map_err(|_| NotRestored::Refused)
+}
+
 /// Takes the saved model back at start-up, with the phase from a park or
 /// unknown; returns where the model came from.
 pub async fn restore_model(
@@ -154,22 +194,20 @@ pub async fn restore_model(
     } else {
         (Phase::Unknown, ModelOrigin::Relearn)
     };
-    match flash_operation(store.load_model(FORMAT_VERSION)).await {
-        Ok(bytes) => match learner.restore(bytes, phase) {
-            Ok(()) => {
-                defmt::info!("model restored ({} bytes)", bytes.len());
-                origin
-            }
-            Err(_) => {
-                defmt::warn!("stored model refused by its checks: learning from the start");
-                ModelOrigin::Cold
-            }
-        },
-        Err(LoadError::NothingStored) => {
+    match restore_stored(store, learner, phase).await {
+        Ok(()) => {
+            defmt::info!("model restored");
+            origin
+        }
+        Err(NotRestored::Refused) => {
+            defmt::warn!("stored model refused by its checks: learning from the start");
+            ModelOrigin::Cold
+        }
+        Err(NotRestored::NothingStored) => {
             defmt::info!("no stored model: learning from the start");
             ModelOrigin::Cold
         }
-        Err(_) => {
+        Err(NotRestored::Unreadable) => {
             defmt::warn!("stored model unreadable or of another firmware: learning from the start");
             ModelOrigin::Cold
         }
@@ -190,29 +228,27 @@ pub async fn restore_at_index(
     let phase = Phase::Worm {
         gear_time_offset_s: index.offset_s(saved_pass, ra_steps),
     };
-    let bytes = flash_operation(store.load_model(FORMAT_VERSION))
-        .await
-        .ok()?;
-    match learner.restore(bytes, phase) {
+    match restore_stored(store, learner, phase).await {
         Ok(()) => {
             defmt::info!("model restored at the worm index's first pass");
             Some(ModelOrigin::Index)
         }
-        Err(_) => {
+        Err(NotRestored::Refused) => {
             defmt::warn!("stored model refused at the worm index's pass");
             None
         }
+        Err(_) => None,
     }
 }
 
-/// The snapshot being written, for the store (`SNAPSHOT_MAX` bytes).
-pub type SnapshotBuffer = [u8; SNAPSHOT_MAX];
+/// The learner's record being written, for the store (`RECORD_MAX` bytes).
+pub type SnapshotBuffer = [u8; RECORD_MAX];
 
 static SNAPSHOT: StaticCell<SnapshotBuffer> = StaticCell::new();
 
 /// The snapshot buffer, once.
 pub fn snapshot_buffer() -> Option<&'static mut SnapshotBuffer> {
-    SNAPSHOT.try_init([0; SNAPSHOT_MAX])
+    SNAPSHOT.try_init([0; RECORD_MAX])
 }
 
 /// Saves the learned model, and with it the worm index's last pass if
@@ -228,7 +264,7 @@ pub async fn save_model(
     match learner.snapshot(buf) {
         Ok(n) => {
             let bytes = buf.get(..n).unwrap_or(&[]);
-            let saved = flash_operation(store.save_model(FORMAT_VERSION, bytes, erase)).await;
+            let saved = flash_operation(store.save_model(RECORD_FORMAT, bytes, erase)).await;
             let model_saved = saved.is_ok();
             report("model", saved);
             if let (true, Some(pass)) = (model_saved, index_pass) {
