@@ -136,45 +136,9 @@ pub async fn boot_park(store: &mut FirmwareStore) -> Option<Park> {
     }
 }
 
-/// Why no model was restored.
-enum NotRestored {
-    NothingStored,
-    /// Unreadable, or of another firmware's format.
-    Unreadable,
-    /// Refused by its checks.
-    Refused,
-}
-
-/// Restores the learner from the stored record, of the current format or
-/// the older one without the pulse share (read with the share unknown).
-async fn restore_stored(
-    store: &mut FirmwareStore,
-    learner: &mut Learner<STAGES>,
-    phase: Phase,
-) -> Result<(), NotRestored> {
-    let not_loaded = |e| match e {
-        LoadError::NothingStored => NotRestored::NothingStored,
-        _ => NotRestored::Unreadable,
-    };
-    let format = match flash_operation(store.load_model(RECORD_FORMAT)).await {
-        Ok(bytes) => {
-            return learner
-                .restore(bytes, RECORD_FORMAT, phase)
-                .map_err(|_| NotRestored::Refused)
-        }
-        Err(LoadError::Format {
-            found: MODEL_ONLY_FORMAT,
-            ..
-        }) => MODEL_ONLY_FORMAT,
-        Err(e) => return Err(not_loaded(e)),
-    };
-    let bytes = flash_operation(store.load_model(format))
-        .await
-        .map_err(not_loaded)?;
-    learner
-        .restore(bytes, format, phase)
-        .map_err(|_| NotRestored::Refused)
-}
+/// The model record's formats the firmware restores: its own, and the
+/// older one without the pulse share (the share then earned again).
+const RECORD_FORMATS: [u16; 2] = [RECORD_FORMAT, MODEL_ONLY_FORMAT];
 
 /// Takes the saved model back at start-up, with the phase from a park or
 /// unknown; returns where the model came from.
@@ -194,20 +158,22 @@ pub async fn restore_model(
     } else {
         (Phase::Unknown, ModelOrigin::Relearn)
     };
-    match restore_stored(store, learner, phase).await {
-        Ok(()) => {
-            defmt::info!("model restored");
-            origin
-        }
-        Err(NotRestored::Refused) => {
-            defmt::warn!("stored model refused by its checks: learning from the start");
-            ModelOrigin::Cold
-        }
-        Err(NotRestored::NothingStored) => {
+    match flash_operation(store.load_model_of(&RECORD_FORMATS)).await {
+        Ok((format, bytes)) => match learner.restore(bytes, format, phase) {
+            Ok(()) => {
+                defmt::info!("model restored ({} bytes, format {})", bytes.len(), format);
+                origin
+            }
+            Err(_) => {
+                defmt::warn!("stored model refused by its checks: learning from the start");
+                ModelOrigin::Cold
+            }
+        },
+        Err(LoadError::NothingStored) => {
             defmt::info!("no stored model: learning from the start");
             ModelOrigin::Cold
         }
-        Err(NotRestored::Unreadable) => {
+        Err(_) => {
             defmt::warn!("stored model unreadable or of another firmware: learning from the start");
             ModelOrigin::Cold
         }
@@ -228,16 +194,18 @@ pub async fn restore_at_index(
     let phase = Phase::Worm {
         gear_time_offset_s: index.offset_s(saved_pass, ra_steps),
     };
-    match restore_stored(store, learner, phase).await {
+    let (format, bytes) = flash_operation(store.load_model_of(&RECORD_FORMATS))
+        .await
+        .ok()?;
+    match learner.restore(bytes, format, phase) {
         Ok(()) => {
             defmt::info!("model restored at the worm index's first pass");
             Some(ModelOrigin::Index)
         }
-        Err(NotRestored::Refused) => {
+        Err(_) => {
             defmt::warn!("stored model refused at the worm index's pass");
             None
         }
-        Err(_) => None,
     }
 }
 
