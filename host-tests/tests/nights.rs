@@ -41,7 +41,10 @@ fn goals_with_the_gear_moved_while_off() {
     // With the index (the worm's phase; each other stage's share of the
     // saved cells put back at the phase the first tenth of a worm period
     // shows): the goal is 1.15 x settled on every row; measured 0.76-1.12
-    // (C3 and C5 noise-free).
+    // noise-free (C3 and C5). With 1 px and the pulse damping (its share
+    // saved with the model) 0.87-1.08 but C3 1.31 and C5 1.16, which fail:
+    // the restored model's first minutes against a settled figure the
+    // damping lowered (docs/results.md, "Nights across a power cycle").
     check(&rows, "index > 1.13 x settled", |r| {
         r.restored_index_first30 <= 1.13 * r.settled
     });
@@ -54,13 +57,9 @@ fn goals_with_the_gear_parked() {
         r.restored_first30 <= r.cold_first30 && r.restored_index_first30 <= r.cold_first30
     });
     // Every phase carries over: the goal, within 1.15 x settled on every
-    // row (measured 0.79-1.08) until the pulse damping; with 1 px each
-    // night earns its share again (see above): 0.96-1.24 x settled (C1),
-    // every figure lower than before.
-    check(&rows, "park > 1.15 x settled noise-free", |r| {
-        r.noise_px > 0.0 || r.restored_index_first30 <= 1.15 * r.settled
-    });
-    check(&rows, "park > 1.25 x settled with noise", |r| {
-        r.noise_px == 0.0 || r.restored_index_first30 <= 1.25 * r.settled
+    // row (measured 0.77-1.08; 1 px with the damping's share saved with
+    // the model).
+    check(&rows, "park > 1.15 x settled", |r| {
+        r.restored_index_first30 <= 1.15 * r.settled
     });
 }
