@@ -443,7 +443,7 @@ impl Rig {
         self.learning.learner.counters()
     }
 
-    /// The firmware's two-stage learner (`Firmware::Mkgp`), e.g. to save
+    /// The firmware's learner (`Firmware::Mkgp`), e.g. to save
     /// or restore its model.
     pub fn mkgp_learner(&mut self) -> Option<&mut Learner<FIRMWARE_STAGES>> {
         match &mut self.learning.learner {

@@ -22,7 +22,7 @@ use crate::firmware::log;
 use crate::firmware::storage::{self, FirmwareStore, SnapshotBuffer};
 use crate::STAGES;
 
-/// How often the model is saved while it learns. With the two-stage
+/// How often the model is saved while it learns. With the three-stage
 /// model's 8 KiB snapshot a storage page takes 14 saves: 2.3 hours of
 /// guiding before a save would need an erase, which these saves never do
 /// (docs/persistence.md has the wear arithmetic at this cadence).

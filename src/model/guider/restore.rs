@@ -99,7 +99,7 @@ pub(super) struct PhaseSearch<const N: usize> {
 impl<S: Scalar, const N: usize> Guider<S, N> {
     /// Write the learned state (see [`crate::model::snapshot`]) into `out`,
     /// at most [`SNAPSHOT_MAX`](crate::model::snapshot::SNAPSHOT_MAX)
-    /// bytes for two stages; returns the length written. Not a per-frame
+    /// bytes for three stages; returns the length written. Not a per-frame
     /// call: it reads the newest [`SNAPSHOT_CELLS`] cells. Refused
     /// ([`SnapshotError::Placing`]) while a phase search is pending.
     pub fn snapshot(&self, out: &mut [u8]) -> Result<usize, SnapshotError> {
