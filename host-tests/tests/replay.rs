@@ -7,8 +7,10 @@ mod common;
 use common::TraceRow;
 use host_tests::data;
 use host_tests::guide_algorithm::{GuideAlgorithm, Hysteresis};
+use host_tests::models::{self, Model};
 use host_tests::phd2_log::{self, GuideLog};
 use host_tests::replay;
+use mkgp_mount::model::guider::{Guider, GuiderConfig};
 
 const LOGS: [&str; 5] = [
     "dataset01",
@@ -114,4 +116,105 @@ fn replay_needs_three_frames() {
     l.frames.truncate(2);
     let e = replay::run(&l, &mut Hysteresis::phd2_baseline()).unwrap_err();
     assert!(e.to_string().contains("at least 3"), "{e}");
+}
+
+/// PHD2's own GP test (`guide_performance_test.cpp` in PHD2's
+/// `contributions/MPI_IS_gaussian_process`) replays the logs as we do, but
+/// its GP guider's control is proportional, 0.7 x (none below 0.2 px), plus
+/// 0.5 x the prediction from the first frames on: no hysteresis term and no
+/// blend. It is still scored against hysteresis 0.7 (hysteresis 0.1). That
+/// law, with our model's prediction (the model learns as in `frame`; only
+/// the control differs).
+struct Phd2TestLaw<const N: usize> {
+    guider: Box<Guider<f64, N>>,
+    applied: f64,
+}
+
+impl<const N: usize> Phd2TestLaw<N> {
+    fn new() -> Self {
+        Phd2TestLaw {
+            guider: Box::new(Guider::new(GuiderConfig::default())),
+            applied: 0.0,
+        }
+    }
+}
+
+impl<const N: usize> GuideAlgorithm for Phd2TestLaw<N> {
+    fn step(&mut self, t: f64, measured: f64, snr: f64, dt: f64) -> f64 {
+        let gear = self.applied + measured;
+        self.guider.observe(t, Some(gear), self.applied, snr, dt);
+        let reactive = if measured.abs() < 0.2 {
+            0.0
+        } else {
+            0.7 * measured
+        };
+        let control = reactive + 0.5 * self.guider.prediction();
+        self.applied += control;
+        control
+    }
+}
+
+/// What PHD2's test measures on log 05 (it reports 3.81 %; our MKGP with
+/// the hysteresis term alone 2.59 %): mostly the reactive law, which alone
+/// gains more there than PHD2's GP guider; under the same law our model is
+/// ahead, and on logs 01, 02 and 04 that law loses to the blend with
+/// hysteresis (docs/model.md, "PHD2's own GP test on the logs").
+#[test]
+fn phd2_gp_test_law() {
+    // (log, proportional 0.7 alone, PHD2's law with N = 1, with N = 2): gain % over hysteresis 0.7.
+    let want = [
+        ("dataset01", -0.49, -0.65, 0.16),
+        ("dataset02", -0.50, -1.48, -1.58),
+        ("dataset03", 6.18, 12.30, 12.30),
+        ("dataset04", 0.88, 8.05, 8.11),
+        ("dataset05", 3.97, 4.03, 4.41),
+    ];
+    for (name, proportional, n1, n2) in want {
+        let l = log(name);
+        let hyst = replay::run(&l, &mut Hysteresis::phd2_baseline())
+            .unwrap()
+            .rms;
+        let gain =
+            |a: &mut dyn GuideAlgorithm| replay::gain_pct(replay::run(&l, a).unwrap().rms, hyst);
+        let got = (
+            gain(&mut Hysteresis::new(0.7, 0.0, 0.2)),
+            gain(&mut Phd2TestLaw::<1>::new()),
+            gain(&mut Phd2TestLaw::<2>::new()),
+        );
+        println!(
+            "{name}: proportional {:.2} %, PHD2's law N = 1 {:.2} %, N = 2 {:.2} %",
+            got.0, got.1, got.2
+        );
+        for (g, w) in [(got.0, proportional), (got.1, n1), (got.2, n2)] {
+            assert!(
+                (g - w).abs() < 0.005,
+                "{name}: {got:?} vs {:?}",
+                (proportional, n1, n2)
+            );
+        }
+    }
+}
+
+/// Issue 10, section 6: with the reactive law chosen by measurement
+/// (docs/model.md), MKGP gains more on log 05 than PHD2's own GP test
+/// reports for PHD2's guider (3.81 %), and the logs where the hysteresis
+/// term is better keep it.
+#[test]
+fn mkgp_chooses_the_reactive_law() {
+    // MKGP's gain % over hysteresis 0.7 (`guide-sim replay`).
+    let want = [0.73, 0.40, 12.26, 8.37, 4.03];
+    for (name, want) in LOGS.iter().zip(want) {
+        let l = log(name);
+        let hyst = replay::run(&l, &mut Hysteresis::phd2_baseline()).unwrap();
+        let mkgp = replay::run(
+            &l,
+            &mut *models::algorithm(Model::Mkgp, Some(0.7), Some(0.5)),
+        )
+        .unwrap();
+        let gain = replay::gain_pct(mkgp.rms, hyst.rms);
+        assert!(
+            (gain - want).abs() < 0.005,
+            "{name}: {gain:.3} % vs {want} %"
+        );
+    }
 }

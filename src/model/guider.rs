@@ -36,7 +36,7 @@ pub const DITHER_FRAMES: u8 = 10;
 /// Frames before the model is consulted at all.
 const WARM_UP_FRAMES: u32 = 10;
 /// Weight of the previous control in the hysteresis term.
-const HYSTERESIS: f64 = 0.1;
+pub(crate) const HYSTERESIS: f64 = 0.1;
 /// Variance given to a frame without a star.
 const DARK_VARIANCE: f64 = 1e4;
 /// SNR assumed when the caller does not know it.
@@ -487,6 +487,9 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             control_gain: self.config.control_gain,
             prediction_gain: self.config.prediction_gain,
             min_move: self.config.min_move,
+            // HYSTERESIS unless the shadows measured the proportional law
+            // better (N > 1 only: the single-kernel guider never asks them).
+            hysteresis: self.trust.hysteresis(),
         }
     }
 

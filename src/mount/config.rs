@@ -56,7 +56,8 @@ pub struct MountConfig {
     /// here (default 10 000 000 = 10 s). > 0.
     pub pulse_cap_us: u32,
     /// Guide cycle in seconds assumed when the guider sends no pulse
-    /// (default 2.0). Finite, > 0.
+    /// (default 2.0); a guider whose pulses show a cycle more than half as
+    /// long again is followed at its own. Finite, > 0.
     pub guide_cadence_s: f32,
     /// Assumed aggressiveness of the guider (the fraction of the measured
     /// error it corrects per frame), in (0, 1] (default 0.7, PHD2's

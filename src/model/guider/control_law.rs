@@ -3,7 +3,6 @@
 //! blend falls back on. One law for the guider (`Guider::frame`, in its
 //! scalar type) and for the shadow loops of `trust` (in `f64`).
 
-use super::HYSTERESIS;
 use crate::model::numeric::scalar::Scalar;
 
 #[derive(Clone, Copy, Debug)]
@@ -12,6 +11,8 @@ pub(super) struct Law<S> {
     pub prediction_gain: S,
     /// Errors smaller than this get no reactive correction.
     pub min_move: S,
+    /// Weight of the older control in the hysteresis term.
+    pub hysteresis: f64,
 }
 
 impl<S: Scalar> Law<S> {
@@ -23,7 +24,8 @@ impl<S: Scalar> Law<S> {
     pub fn control(&self, input: S, older_control: S, prediction: Option<(S, S)>) -> S {
         let gain = self.control_gain;
         let mut hysteresis = gain
-            * (S::from_f64(1.0 - HYSTERESIS) * input + S::from_f64(HYSTERESIS) * older_control);
+            * (S::from_f64(1.0 - self.hysteresis) * input
+                + S::from_f64(self.hysteresis) * older_control);
         let mut control = gain * input;
         if input.abs() < self.min_move {
             control = S::ZERO;
@@ -45,6 +47,7 @@ impl<S: Scalar> Law<S> {
             control_gain: self.control_gain.to_f64(),
             prediction_gain: self.prediction_gain.to_f64(),
             min_move: self.min_move.to_f64(),
+            hysteresis: self.hysteresis,
         }
     }
 }

@@ -16,8 +16,18 @@
 //! compare causally and paired, frame by frame. The weight the guider gives
 //! the reference blend rises while the model's shadow is measured better by
 //! a margin, falls while it is measured worse, and holds between.
+//!
+//! The reactive term itself is chosen the same way. The reference's
+//! hysteresis term (a tenth of the control two frames back) lowers the
+//! effective gain and adds momentum; on some guide logs proportional
+//! control is better (PHD2's own GP test uses it, docs/model.md). Two more
+//! shadows run the guider's law, under the reference blend, with the
+//! hysteresis term and with proportional control in its place, from the
+//! first frame; the guider uses proportional control while that shadow is
+//! measured better by a margin, and goes back when it is measured worse.
 
 use super::control_law::Law;
+use super::HYSTERESIS;
 
 /// Frames a mean square averages over (about 7 minutes at 2 s frames; a
 /// worm period or more of a modest worm, so that its slopes both ways count).
@@ -35,6 +45,13 @@ const MIN_SCORED: f64 = 200.0;
 /// The model's shadow must beat the reactive one by this fraction of its
 /// mean square before the weight rises (the hysteresis of the decision).
 const MARGIN: f64 = 0.001;
+/// Frames scored before the reactive law may change: the two laws differ by
+/// a fraction of the noise, so their comparison needs more frames than the
+/// model's (with 200, PHD2 log 03 switched on too few and lost 0.2 %).
+const LAW_MIN_SCORED: f64 = 400.0;
+/// The proportional shadow must beat the hysteretic one by this fraction of
+/// its mean square before the guider switches to it.
+const LAW_MARGIN: f64 = 0.01;
 
 /// One virtual loop on the reconstructed gear error.
 #[derive(Clone, Copy, Debug, Default)]
@@ -81,6 +98,13 @@ pub(super) struct Trust {
     /// dilute the comparison).
     scored: f64,
     weight: f64,
+    /// The guider's law under the reference blend, with the hysteresis term
+    /// and with proportional control in its place.
+    hysteretic: Shadow,
+    proportional: Shadow,
+    /// Frames the two have scored (every frame with a measurement).
+    law_scored: f64,
+    use_proportional: bool,
 }
 
 impl Trust {
@@ -101,13 +125,31 @@ impl Trust {
     pub fn measured(&mut self, gear: f64, law: &Law<f64>, prediction: Option<(f64, f64)>) -> f64 {
         let reactive = self.reactive.step(gear, law, None);
         let model = self.model.step(gear, law, prediction);
-        if !(gear.is_finite() && reactive.is_finite() && model.is_finite()) {
+        let hysteretic = Law {
+            hysteresis: HYSTERESIS,
+            ..*law
+        };
+        let proportional = Law {
+            hysteresis: 0.0,
+            ..*law
+        };
+        let with_hysteresis = self.hysteretic.step(gear, &hysteretic, prediction);
+        // Without a prediction the shadow's law is the reactive term alone
+        // (a blend of 0), here proportional control.
+        let without = self.proportional.step(gear, &proportional, prediction);
+        if !(gear.is_finite()
+            && reactive.is_finite()
+            && model.is_finite()
+            && with_hysteresis.is_finite()
+            && without.is_finite())
+        {
             *self = Self {
                 weight: 0.0,
                 ..Self::default()
             };
             return 0.0;
         }
+        self.choose_law(with_hysteresis, without);
         if prediction.is_none_or(|(_, blend)| !(blend > 0.0)) {
             return self.weight;
         }
@@ -127,11 +169,43 @@ impl Trust {
         self.weight
     }
 
+    /// Score the two laws' measurements and switch the reactive law when
+    /// one is measured better.
+    fn choose_law(&mut self, with_hysteresis: f64, without: f64) {
+        self.law_scored += 1.0;
+        self.hysteretic.score(with_hysteresis, self.law_scored);
+        self.proportional.score(without, self.law_scored);
+        if self.law_scored < LAW_MIN_SCORED {
+            return;
+        }
+        let (h, p) = (self.hysteretic.mean_square, self.proportional.mean_square);
+        if p < (1.0 - LAW_MARGIN) * h {
+            self.use_proportional = true;
+        } else if p > h {
+            self.use_proportional = false;
+        }
+    }
+
+    /// Weight of the older control in the guider's hysteresis term: the
+    /// reference's, or 0 while proportional control is measured better.
+    pub fn hysteresis(&self) -> f64 {
+        if self.use_proportional {
+            0.0
+        } else {
+            HYSTERESIS
+        }
+    }
+
     /// A frame without a measurement, or after a dither: the shadows cannot
     /// run, and start again from the guider's own loop (`applied`, its
     /// controls' sum after this frame, and its last two controls).
     pub fn follow(&mut self, applied: f64, controls: [f64; 2]) {
-        for s in [&mut self.reactive, &mut self.model] {
+        for s in [
+            &mut self.reactive,
+            &mut self.model,
+            &mut self.hysteretic,
+            &mut self.proportional,
+        ] {
             s.applied = applied;
             s.controls = controls;
         }

@@ -1,5 +1,14 @@
 //! The guide frames: one per RA pulse, or filled at the guide cadence when
 //! the guider sends none, queued for the learner.
+//!
+//! A filled frame says "the guider measured less than its minimum move".
+//! That holds only if the guider exposed in its interval: a guider slower
+//! than the configured cadence (8 s exposures against 2 s) would get three
+//! filled frames per exposure that each claim no error where there is
+//! some, and the model would learn its own feed-forward as gear error (a
+//! runaway measured at 4.8 x the guider alone). So the cadence the frames
+//! are filled at is the guider's own, as its pulses show it, whenever that
+//! is clearly slower than the configured one.
 
 use heapless::Deque;
 
@@ -15,9 +24,49 @@ struct OpenFrame {
     direction: Direction,
 }
 
+/// Intervals between RA pulse starts the guider's cadence is measured over.
+const CADENCE_WINDOW: usize = 8;
+/// Intervals needed before the measured cadence is used.
+const CADENCE_MIN_INTERVALS: usize = 3;
+
+/// The guider's cadence as its RA pulses show it: the shortest of the last
+/// [`CADENCE_WINDOW`] intervals between pulse starts (a guider that skips
+/// an exposure below its minimum move makes an interval of two cadences,
+/// never a shorter one).
+#[derive(Clone, Copy, Debug, Default)]
+struct PulseCadence {
+    last_start_us: Option<u64>,
+    intervals_us: [u64; CADENCE_WINDOW],
+    count: usize,
+    next: usize,
+}
+
+impl PulseCadence {
+    fn pulse_started(&mut self, at_us: u64) {
+        if let Some(prev) = self.last_start_us {
+            if let Some(slot) = self.intervals_us.get_mut(self.next) {
+                *slot = at_us.saturating_sub(prev);
+            }
+            self.next = (self.next + 1) % CADENCE_WINDOW;
+            self.count = (self.count + 1).min(CADENCE_WINDOW);
+        }
+        self.last_start_us = Some(at_us);
+    }
+
+    /// The measured cadence, once enough intervals are known.
+    fn measured_us(&self) -> Option<u64> {
+        if self.count < CADENCE_MIN_INTERVALS {
+            return None;
+        }
+        self.intervals_us.iter().take(self.count).copied().min()
+    }
+}
+
 pub(super) struct Framer {
     aggressiveness: f32,
+    /// The configured guide cadence (`guide_cadence_s`).
     cadence_us: u64,
+    pulse_cadence: PulseCadence,
     dither_threshold_us: u64,
     silence_frames: u32,
     guide_arcsec_per_s: f32,
@@ -45,6 +94,7 @@ impl Framer {
         Framer {
             aggressiveness,
             cadence_us,
+            pulse_cadence: PulseCadence::default(),
             dither_threshold_us,
             silence_frames,
             guide_arcsec_per_s,
@@ -68,10 +118,22 @@ impl Framer {
         self.quiet_fills > self.silence_frames
     }
 
+    /// The cadence frames are filled at: the configured one, or the
+    /// guider's measured one where that is more than half as long again
+    /// (pulses skipped below the minimum move can make the measure longer
+    /// than the guider's true cadence, never shorter: the margin keeps
+    /// those from stretching a right configuration).
+    pub fn fill_cadence_us(&self) -> u64 {
+        match self.pulse_cadence.measured_us() {
+            Some(m) if m / 3 > self.cadence_us / 2 => m,
+            _ => self.cadence_us,
+        }
+    }
+
     /// The guider was heard at `at_us`.
     pub fn heard(&mut self, at_us: u64) {
         if self.fill_due_us.is_none() {
-            self.fill_due_us = Some(at_us.saturating_add(self.cadence_us));
+            self.fill_due_us = Some(at_us.saturating_add(self.fill_cadence_us()));
         }
         self.quiet_fills = 0;
         self.last_activity_us = Some(at_us);
@@ -79,6 +141,7 @@ impl Framer {
 
     /// An RA pulse started: it opens a frame at `mark`.
     pub fn open(&mut self, mark: Mark, direction: Direction) {
+        self.pulse_cadence.pulse_started(mark.at_us);
         self.fill_mark = None;
         self.open = Some(OpenFrame { mark, direction });
     }
@@ -110,7 +173,11 @@ impl Framer {
         self.emit(open.mark, kind, correction, false, counters);
         // The next filled frame: a cadence after this one, but not before
         // the pulse ended (the guider was busy with it).
-        let due = open.mark.at_us.saturating_add(self.cadence_us).max(at_us);
+        let due = open
+            .mark
+            .at_us
+            .saturating_add(self.fill_cadence_us())
+            .max(at_us);
         self.fill_due_us = Some(due);
     }
 
@@ -138,7 +205,8 @@ impl Framer {
         let Some(due) = self.fill_due_us else {
             return;
         };
-        let grace = self.cadence_us / 4;
+        let cadence_us = self.fill_cadence_us();
+        let grace = cadence_us / 4;
         if now_us < due.saturating_add(grace) {
             return;
         }
@@ -156,7 +224,7 @@ impl Framer {
             FrameKind::Measured
         };
         self.emit(mark, kind, 0.0, true, counters);
-        self.fill_due_us = Some(mark.at_us.saturating_add(self.cadence_us.max(1)));
+        self.fill_due_us = Some(mark.at_us.saturating_add(cadence_us.max(1)));
     }
 
     /// Queue the frame that ends at `mark`; a full queue drops its oldest.

@@ -41,9 +41,11 @@
 //!
 //! A frame starts at each RA pulse start (the guider has just finished an
 //! exposure and measured; ST4 gives the edge's own time). When the guider
-//! sends no RA pulse for a guide cadence (`guide_cadence_s`, default 2 s),
-//! a frame is filled at `previous frame + cadence` (emitted after a grace
-//! of a quarter cadence, in case the pulse is just late). Its observation:
+//! sends no RA pulse for a guide cadence (`guide_cadence_s`, default 2 s;
+//! the guider's own, measured from its pulses, where that is more than
+//! half as long again: `framer`), a frame is filled at `previous frame +
+//! cadence` (emitted after a grace of a quarter cadence, in case the pulse
+//! is just late). Its observation:
 //!
 //! `gear error = mean of C over the interval since the previous frame
 //!               + the frame's RA pulse correction / aggressiveness`

@@ -207,3 +207,37 @@ fn a_long_pulse_is_a_dither() {
     track(&mut g, 5_000_000, 6_000_000, &mut pos);
     assert!(g.applied_arcsec().abs() < 2.0 * m.arcsec_per_ra_step() as f64);
 }
+
+/// RA pulses of 100 ms at `starts_s`; returns the filled frames counted.
+fn fills_with_pulses_at(starts_s: &[f64]) -> u32 {
+    let m = mount();
+    let mut g = Guiding::new(&m);
+    let mut pos = 0.0;
+    let mut t = 0;
+    for &s in starts_s {
+        let at = (s * 1e6) as u64;
+        track(&mut g, t, at, &mut pos);
+        g.on_event(start(Direction::Plus, at));
+        track(&mut g, at, at + 100_000, &mut pos);
+        g.on_event(end(at + 100_000));
+        t = at + 100_000;
+        while g.take_frame().is_some() {}
+    }
+    g.counters().filled_frames
+}
+
+#[test]
+fn frames_are_filled_at_the_guiders_own_cadence() {
+    // The configured cadence is 2 s. A guider exposing 8 s: after the
+    // three intervals that measure it, no frame is filled between its
+    // pulses (before: three per exposure, each claiming no error).
+    assert_eq!(MountConfig::default().guide_cadence_s, 2.0);
+    let slow: std::vec::Vec<f64> = (0..20).map(|k| 8.0 * k as f64).collect();
+    assert_eq!(fills_with_pulses_at(&slow), 3 * 3);
+    // A 2 s guider that skips every other exposure (below its minimum
+    // move) keeps the configured cadence: the skipped exposures are filled.
+    let skipping: std::vec::Vec<f64> = (0..20)
+        .map(|k| 6.0 * (k / 2) as f64 + 2.0 * (k % 2) as f64)
+        .collect();
+    assert_eq!(fills_with_pulses_at(&skipping), 9);
+}

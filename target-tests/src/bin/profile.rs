@@ -109,9 +109,15 @@ fn main() -> ! {
     let r = l.factor();
     let b = instr::elapsed_instructions();
     let mut v = [1.0f32; 100];
-    l.solve(&mut v);
+    let s = l.solve(&mut v);
     let c = instr::elapsed_instructions();
-    hprintln!("ldlt factor 100: {} ({:?}); solve {}", b - a, r, c - b);
+    hprintln!(
+        "ldlt factor 100: {} ({:?}); solve {} ({:?})",
+        b - a,
+        r,
+        c - b,
+        s
+    );
     exit(true)
 }
 

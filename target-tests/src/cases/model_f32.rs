@@ -62,7 +62,7 @@ pub fn ldlt_known_solve() -> TestResult {
         }
     }
     check(f.factor().is_ok(), "factor refused an SPD matrix")?;
-    f.solve(&mut b);
+    check(f.solve(&mut b).is_ok(), "solve refused a factored matrix")?;
     let mut worst = 0.0;
     for i in 0..6 {
         worst = if abs(b[i] as f64 - x[i]) > worst {
