@@ -3,7 +3,7 @@
 //!
 //! - **Night 1.** 3 h of guiding from a cold model; `settled` is the
 //!   pointing RMS over its hours 1-3.
-//! - **Power cycle.** The learner's model is saved with
+//! - **Power cycle.** The learner's model and pulse share are saved with
 //!   `Learner::snapshot`, the bytes go through [`power_cycle`] (the firmware's
 //!   store, onto a simulated flash, and back) and are restored with
 //!   `Learner::restore` into the fresh
@@ -26,7 +26,8 @@
 use crate::cases::Case;
 use crate::st4_sim::{Firmware, Rig, SEEDS};
 use embassy_futures::block_on;
-use mkgp_mount::model::snapshot::{Phase, FORMAT_VERSION, SNAPSHOT_MAX};
+use mkgp_mount::model::snapshot::Phase;
+use mkgp_mount::mount::learner::{RECORD_FORMAT, RECORD_MAX};
 use mkgp_mount::persist::sim_flash::SimFlash;
 use mkgp_mount::persist::{Erase, Store};
 use mkgp_mount::testing::SplitMix64;
@@ -67,11 +68,11 @@ pub fn power_cycle(saved: &[u8]) -> Vec<u8> {
     let range = 0..flash.len() as u32;
     {
         let mut night_1 = Store::new(SimFlash::<SECTOR>::new(&mut flash), range.clone());
-        block_on(night_1.save_model(FORMAT_VERSION, saved, Erase::Allow))
+        block_on(night_1.save_model(RECORD_FORMAT, saved, Erase::Allow))
             .unwrap_or_else(|e| panic!("the model does not fit the store: {e:?}"));
     }
     let mut boot = Store::new(SimFlash::<SECTOR>::new(&mut flash), range);
-    block_on(boot.load_model(FORMAT_VERSION))
+    block_on(boot.load_model(RECORD_FORMAT))
         .unwrap_or_else(|e| panic!("the saved model does not load: {e:?}"))
         .to_vec()
 }
@@ -121,7 +122,7 @@ fn night(
     if let Some((bytes, phase)) = restore {
         let learner = rig.mkgp_learner().expect("the MKGP firmware has a learner");
         learner
-            .restore(bytes, phase)
+            .restore(bytes, RECORD_FORMAT, phase)
             .unwrap_or_else(|e| panic!("restore: {e:?}"));
     }
     rig.run_until((length_s * 1e6) as u64);
@@ -132,7 +133,7 @@ fn night(
 /// the phase.
 fn one_seed(case: &Case, noise_px: f64, seed: u64, start: Night2Start) -> [f64; 4] {
     let mut first = night(case, noise_px, seed, 0.0, None, NIGHT_1_S, SETTLED_FROM_S);
-    let mut saved = [0u8; SNAPSHOT_MAX];
+    let mut saved = [0u8; RECORD_MAX];
     let learner = first
         .mkgp_learner()
         .expect("the MKGP firmware has a learner");

@@ -107,6 +107,44 @@ impl GuiderSettings {
     }
 }
 
+/// What moves the star besides the gear: no periodic error, so no model
+/// explains it (wall time; all 0 by default).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Sky {
+    /// A constant RA drift, arcsec per minute (polar misalignment,
+    /// refraction).
+    pub drift_arcsec_per_min: f64,
+    /// A random walk (flexure, seeing's slow part): its spread grows by
+    /// this many arcsec per square root of a minute, drawn every second
+    /// from its own generator (seed + 1000).
+    pub walk_arcsec_per_sqrt_min: f64,
+    /// A bump: the star steps by this many arcsec at 900 s and back at
+    /// 1800 s, and so on every 1800 s (a cable snag, a gust).
+    pub bump_arcsec: f64,
+}
+
+/// BUMP_PERIOD_S / 2: the bump's half period, s.
+const BUMP_HALF_PERIOD_S: f64 = 900.0;
+
+/// Everything a table's runs share besides the case and the noise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Setup {
+    pub guider: GuiderSettings,
+    pub sky: Sky,
+    /// The firmware's `least_pulse_share` (its default unless set).
+    pub least_pulse_share: f32,
+}
+
+impl Default for Setup {
+    fn default() -> Self {
+        Setup {
+            guider: GuiderSettings::default(),
+            sky: Sky::default(),
+            least_pulse_share: MountConfig::default().least_pulse_share,
+        }
+    }
+}
+
 /// What runs in the firmware.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Firmware {
@@ -278,6 +316,10 @@ pub struct Rig {
     pub gear_phase_s: f64,
     /// The score covers these seconds of the run, [from, until).
     pub score_window_s: (f64, f64),
+    /// What moves the star besides the gear, and the random walk so far
+    /// (arcsec) with its generator.
+    sky: Sky,
+    walk: (f64, Gaussian),
     /// A dither the guider sends with its next pulse: amount, arcsec.
     dither_next: Option<f64>,
     exposure_sum: f64,
@@ -343,6 +385,8 @@ impl Rig {
             lock_arcsec: 0.0,
             gear_phase_s: 0.0,
             score_window_s: (SCORE_FROM_S, f64::INFINITY),
+            sky: Sky::default(),
+            walk: (0.0, Gaussian::new(seed + 1000)),
             dither_next: None,
             exposure_sum: 0.0,
             exposure_n: 0,
@@ -368,6 +412,31 @@ impl Rig {
         self.hysteresis = Hysteresis::new(guider.aggressiveness, 0.1, guider.min_move);
         self.next_exposure_end_us = self.now_us + guider.exposure_us();
         self.guider = guider;
+    }
+
+    /// Sets what moves the star besides the gear; call before the run.
+    pub fn set_sky(&mut self, sky: Sky) {
+        self.sky = sky;
+    }
+
+    /// The star's motion besides the gear at the current time, arcsec.
+    fn sky_arcsec(&self) -> f64 {
+        let t = self.now_us as f64 * 1e-6;
+        let bump = if (t / BUMP_HALF_PERIOD_S) as u64 % 2 == 1 {
+            self.sky.bump_arcsec
+        } else {
+            0.0
+        };
+        self.sky.drift_arcsec_per_min * t / 60.0 + self.walk.0 + bump
+    }
+
+    /// The share of the RA guide pulses the MKGP learner carries out now.
+    pub fn pulse_share(&self) -> f32 {
+        match &self.learning.learner {
+            AnyLearner::Mkgp(l) => l.pulse_share(),
+            AnyLearner::One(l) => l.pulse_share(),
+            AnyLearner::None => 1.0,
+        }
     }
 
     pub fn learner_counters(&self) -> LearnerCounters {
@@ -459,7 +528,7 @@ impl Rig {
     /// The pointing error now: the axis' lag behind the sky, arcsec.
     pub fn pointing_arcsec(&self) -> f64 {
         let gear_s = self.ra_steps() as f64 / self.mount.sidereal_ra_steps_per_s_f64();
-        self.case.gear_error(gear_s + self.gear_phase_s) - self.applied_arcsec()
+        self.case.gear_error(gear_s + self.gear_phase_s) - self.applied_arcsec() + self.sky_arcsec()
     }
 
     /// Residual RMS over the scored samples so far.
@@ -572,6 +641,10 @@ impl Rig {
     /// The pointing sample: score, exposure, and the guider at the end of an
     /// exposure.
     fn sample(&mut self) {
+        if self.sky.walk_arcsec_per_sqrt_min > 0.0 && self.now_us.is_multiple_of(1_000_000) {
+            let (walk, g) = &mut self.walk;
+            *walk += self.sky.walk_arcsec_per_sqrt_min / 60f64.sqrt() * g.next();
+        }
         let p = self.pointing_arcsec();
         let t = self.now_us as f64 * 1e-6;
         if (self.score_window_s.0..self.score_window_s.1).contains(&t) {
@@ -643,19 +716,24 @@ pub struct RunResult {
 /// One full run behind the default guider: `noise_px` 0 is noise-free (the
 /// seed is then unused).
 pub fn run(case: &Case, firmware: Firmware, noise_px: f64, seed: u64) -> RunResult {
-    run_with(case, firmware, noise_px, seed, GuiderSettings::default())
+    run_with(case, firmware, noise_px, seed, Setup::default())
 }
 
-/// [`run`] behind `guider`.
+/// [`run`] in `setup`.
 pub fn run_with(
     case: &Case,
     firmware: Firmware,
     noise_px: f64,
     seed: u64,
-    guider: GuiderSettings,
+    setup: Setup,
 ) -> RunResult {
-    let mut rig = Rig::new(case, firmware, noise_px, seed);
-    rig.set_guider(guider);
+    let config = MountConfig {
+        least_pulse_share: setup.least_pulse_share,
+        ..mount_config(case)
+    };
+    let mut rig = Rig::with_mount(case, firmware, noise_px, seed, config);
+    rig.set_guider(setup.guider);
+    rig.set_sky(setup.sky);
     rig.run_until((RUN_S * 1e6) as u64);
     RunResult {
         rms: rig.score(),
@@ -680,11 +758,11 @@ pub const CSV_HEADER: &str = "case,noise_px,guider_only,fw_ppec,fw_mkgp";
 
 /// Mean pointing RMS of `firmware` on `case` with `noise_px` of noise (0:
 /// one noise-free run; else the mean over [`SEEDS`], added in seed order).
-fn mean_rms(case: &Case, firmware: Firmware, noise_px: f64, guider: GuiderSettings) -> f64 {
+fn mean_rms(case: &Case, firmware: Firmware, noise_px: f64, setup: Setup) -> f64 {
     let seeds: &[u64] = if noise_px > 0.0 { &SEEDS } else { &SEEDS[..1] };
     let rms: Vec<f64> = seeds
         .par_iter()
-        .map(|&seed| run_with(case, firmware, noise_px, seed, guider).rms)
+        .map(|&seed| run_with(case, firmware, noise_px, seed, setup).rms)
         .collect();
     rms.iter().sum::<f64>() / rms.len() as f64
 }
@@ -693,18 +771,18 @@ fn mean_rms(case: &Case, firmware: Firmware, noise_px: f64, guider: GuiderSettin
 /// row per case and level in that order; the runs are spread over rayon's
 /// threads.
 pub fn table(cases: &[Case], noise_levels: &[f64]) -> Vec<Row> {
-    table_with(cases, noise_levels, GuiderSettings::default())
+    table_with(cases, noise_levels, Setup::default())
 }
 
-/// [`table`] behind `guider`.
-pub fn table_with(cases: &[Case], noise_levels: &[f64], guider: GuiderSettings) -> Vec<Row> {
+/// [`table`] in `setup`.
+pub fn table_with(cases: &[Case], noise_levels: &[f64], setup: Setup) -> Vec<Row> {
     let rows: Vec<(&Case, f64)> = cases
         .iter()
         .flat_map(|case| noise_levels.iter().map(move |&noise| (case, noise)))
         .collect();
     rows.into_par_iter()
         .map(|(case, noise)| {
-            let firmware = |fw| mean_rms(case, fw, noise, guider);
+            let firmware = |fw| mean_rms(case, fw, noise, setup);
             let (guider_only, (fw_ppec, fw_mkgp)) = rayon::join(
                 || firmware(Firmware::GuiderOnly),
                 || rayon::join(|| firmware(Firmware::Ppec), || firmware(Firmware::Mkgp)),

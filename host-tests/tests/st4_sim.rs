@@ -5,7 +5,7 @@
 
 use host_tests::cases::{self, Case};
 use host_tests::data::cases_file;
-use host_tests::st4_sim::{self, Firmware, GuiderSettings, Rig};
+use host_tests::st4_sim::{self, Firmware, GuiderSettings, Rig, Setup, Sky};
 use mkgp_mount::mount::config::{Field, MountConfig};
 use mkgp_mount::mount::frame::FrameKind;
 use mkgp_mount::mount::st4::Line;
@@ -31,7 +31,8 @@ fn assert_rates_sane(rig: &Rig) {
 
 /// Every case and noise level against the issue's bars. (C5 with 1 px
 /// measured 0.837 x guider alone until a found stage could move to its
-/// octave: seed 2 found the 77.5 s harmonic first. Now 0.798.)
+/// octave: seed 2 found the 77.5 s harmonic first: 0.798, and 0.633 with
+/// the pulse damping.)
 #[test]
 fn goals() {
     let cases = cases::load(&cases_file()).unwrap_or_else(|e| panic!("{e}"));
@@ -58,6 +59,20 @@ fn goals() {
         }
         if r.case == "C8" && r.noise_px > 0.0 {
             bar = Some(0.6);
+        }
+        // Issue 10, section 5 (half the gap to a perfect feed-forward behind
+        // full pulses): C7 met by the pulse damping (0.634, from 0.67); C6
+        // not (0.730, from 0.74: the model's own residual, which the
+        // guider's pulses must follow, is the limit there). C1-C4 with
+        // 1 px: 0.48-0.66 with damping, 0.87-0.93 without.
+        if r.noise_px > 0.0 {
+            match r.case.as_str() {
+                "C7" => bar = Some(0.635),
+                "C5" => bar = Some(0.64),
+                "C6" => bar = Some(0.735),
+                "C1" | "C2" | "C3" | "C4" => bar = Some(0.67),
+                _ => {}
+            }
         }
         if let Some(b) = bar {
             if ratio > b {
@@ -313,4 +328,186 @@ fn cli_csv() {
         .output()
         .unwrap();
     assert!(!o.status.success());
+}
+
+/// A 1 px MKGP rig on `name` (seed 1) with the firmware's least pulse
+/// share `least`, guided for `secs`.
+fn damped_rig(name: &str, least: f32, secs: u64) -> Rig {
+    let c = case(name);
+    let config = MountConfig {
+        least_pulse_share: least,
+        ..st4_sim::mount_config(&c)
+    };
+    let mut r = Rig::with_mount(&c, Firmware::Mkgp, 1.0, 1, config);
+    r.run_until(secs * S);
+    r
+}
+
+/// Mean and RMS of the frames' observations minus the true gear error at
+/// their stamp (the middle of their interval), over frames after 1800 s.
+fn observation_error(r: &Rig) -> (f64, f64) {
+    let errors: Vec<f64> = r
+        .frames
+        .iter()
+        .filter(|f| f.gear_time_s > 1800.0 && f.kind == FrameKind::Measured)
+        .map(|f| {
+            let t = f.gear_time_s - 0.5 * f.interval_s as f64;
+            f.gear_error_arcsec as f64 - r.case.gear_error(t)
+        })
+        .collect();
+    let n = errors.len() as f64;
+    let mean = errors.iter().sum::<f64>() / n;
+    let rms = (errors.iter().map(|e| e * e).sum::<f64>() / n).sqrt();
+    (mean, rms)
+}
+
+/// Behind a trusted model with 1 px of noise the firmware earns a share
+/// below one and carries out the pulses in part; the observations it
+/// rebuilds from them (the motion the steps made plus the pulse over the
+/// aggressiveness) stay as right as with full pulses. Switched off
+/// (`least_pulse_share` 1), every pulse is carried out in full.
+#[test]
+fn damping_is_earned_and_learning_stays_right() {
+    let on = damped_rig("C1", 0.2, 3600);
+    let off = damped_rig("C1", 1.0, 3600);
+    assert!(on.pulse_share() < 0.5, "{}", on.pulse_share());
+    let g = on.guiding_counters();
+    assert!(g.ra_pulses_held_back > 500, "{g:?}");
+    assert_eq!(off.pulse_share(), 1.0);
+    assert_eq!(off.guiding_counters().ra_pulses_held_back, 0);
+    let (mean_on, rms_on) = observation_error(&on);
+    let (mean_off, rms_off) = observation_error(&off);
+    println!("observation error: on {mean_on:.3} / {rms_on:.3}, off {mean_off:.3} / {rms_off:.3}");
+    assert!(mean_on.abs() < 0.1 && mean_off.abs() < 0.1);
+    assert!(
+        (rms_on / rms_off - 1.0).abs() < 0.1,
+        "{rms_on} vs {rms_off}"
+    );
+}
+
+/// A PHD2 calibration (RA+ steps of 750 ms, RA- back, a 2.5 s step)
+/// through the loop while the firmware damps: each pulse moves the mount
+/// by exactly what it asks (the steps beyond sidereal and feed-forward,
+/// within two steps), and a Dec pulse moves Dec by its whole length.
+#[test]
+fn a_calibration_through_the_damped_loop_moves_the_mount_as_asked() {
+    let mut r = damped_rig("C1", 0.2, 3600);
+    assert!(r.pulse_share() < 1.0);
+    r.guider_on = false;
+    // The guider's last pulse is over.
+    r.run_until(r.now_us + 5 * S);
+    let step = r.mount.arcsec_per_ra_step() as f64;
+    let guide = r.mount.guide_rate_arcsec_per_s() as f64;
+    let made_up_before = r.guiding_counters().ra_pulses_made_up;
+    let mut pulses = vec![(Line::RaPlus, 750_000u64); 6];
+    pulses.extend([(Line::RaMinus, 750_000); 6]);
+    pulses.push((Line::RaPlus, 2_500_000));
+    for (line, duration) in pulses {
+        let start = r.now_us + S;
+        r.pulse(line, start, duration);
+        let before = r.applied_arcsec();
+        let mut feed_forward = 0.0;
+        let end = start + duration + S;
+        while r.now_us < end {
+            feed_forward += r.guiding().feed_forward_now() as f64 * 0.01;
+            r.run_until(r.now_us + 10_000);
+        }
+        let moved = r.applied_arcsec() - before - feed_forward;
+        let sign = if line == Line::RaPlus { 1.0 } else { -1.0 };
+        let want = sign * guide * duration as f64 * 1e-6;
+        assert!(
+            (moved - want).abs() < 2.0 * step,
+            "{line:?} {duration}: {moved} vs {want}"
+        );
+    }
+    assert!(r.guiding_counters().ra_pulses_made_up > made_up_before);
+    let dec_before = r.dec_steps();
+    let t = r.now_us + S;
+    r.pulse(Line::DecPlus, t, 750_000);
+    r.run_until(t + 2 * S);
+    let want = 0.75 * r.mount.guide_dec_steps_per_s() as f64;
+    assert!(((r.dec_steps() - dec_before) as f64 - want).abs() <= 1.0);
+    assert_rates_sane(&r);
+}
+
+/// What no model explains (a constant drift of 2 arcsec per minute either
+/// way, a random walk of 1 arcsec per square root of a minute, a bump of
+/// 3 arcsec every 15 minutes): the firmware stays below the guider alone,
+/// by the margin `guide-sim st4 --drift/--walk/--bump` measures on every
+/// case (at most 0.76 of it; docs/results.md).
+#[test]
+fn errors_no_model_explains_stay_below_the_guider_alone() {
+    let cases: Vec<Case> = ["C1", "C5", "C6"].into_iter().map(case).collect();
+    let skies = [
+        Sky {
+            drift_arcsec_per_min: 2.0,
+            ..Sky::default()
+        },
+        Sky {
+            drift_arcsec_per_min: -2.0,
+            ..Sky::default()
+        },
+        Sky {
+            walk_arcsec_per_sqrt_min: 1.0,
+            ..Sky::default()
+        },
+        Sky {
+            bump_arcsec: 3.0,
+            ..Sky::default()
+        },
+    ];
+    let mut failures = Vec::new();
+    for sky in skies {
+        let setup = Setup {
+            sky,
+            ..Setup::default()
+        };
+        for r in st4_sim::table_with(&cases, &[0.0, 1.0], setup) {
+            let ratio = r.fw_mkgp / r.guider_only;
+            println!("{sky:?} {} noise {}: {ratio:.3}", r.case, r.noise_px);
+            if ratio > 0.8 || r.fw_ppec > r.guider_only {
+                failures.push(format!("{sky:?} {} noise {}: {r:?}", r.case, r.noise_px));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// Issue 10, section 4: behind a guider more aggressive than the firmware
+/// assumes (aggressiveness 1.0, 1 s exposures, a calibration of 0.75), fw
+/// MKGP is at most 0.8 of the guider alone on C5-C8 with 1 px (0.60-0.72
+/// measured with the pulse damping; 0.71-0.94 without it).
+#[test]
+fn a_more_aggressive_guider_is_damped_to_the_goal() {
+    let cases: Vec<Case> = ["C5", "C6", "C7", "C8"].into_iter().map(case).collect();
+    let default = GuiderSettings::default();
+    let guiders = [
+        GuiderSettings {
+            aggressiveness: 1.0,
+            ..default
+        },
+        GuiderSettings {
+            exposure_s: 1.0,
+            ..default
+        },
+        GuiderSettings {
+            calibration: 0.75,
+            ..default
+        },
+    ];
+    let mut failures = Vec::new();
+    for guider in guiders {
+        let setup = Setup {
+            guider,
+            ..Setup::default()
+        };
+        for r in st4_sim::table_with(&cases, &[1.0], setup) {
+            let ratio = r.fw_mkgp / r.guider_only;
+            println!("{guider:?} {}: {ratio:.3}", r.case);
+            if ratio > 0.8 {
+                failures.push(format!("{guider:?} {}: {ratio:.3}", r.case));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
 }

@@ -108,6 +108,7 @@ impl ControlLoop {
         [
             self.feed.st4().next_deadline_us(),
             self.port.next_deadline_us(),
+            self.guiding.next_change_us(),
         ]
         .into_iter()
         .flatten()
@@ -158,7 +159,9 @@ impl ControlLoop {
             self.guiding.set_feed_forward(ff);
         }
 
-        let changed = n_events > 0 || core::mem::take(&mut self.rates_due);
+        // A pulse carried out in part changes its rate (`guiding`'s share).
+        let share_due = self.guiding.next_change_us().is_some_and(|t| t <= now_us);
+        let changed = n_events > 0 || core::mem::take(&mut self.rates_due) || share_due;
         self.port.apply(&mut self.guiding);
         if changed || feed_forward.is_some() || now_us >= self.next_update_us {
             wake.rates = Some(self.guiding.rates(now_us, ra_steps));

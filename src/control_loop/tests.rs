@@ -116,6 +116,7 @@ fn a_new_feed_forward_sets_the_rates_at_once() {
         rate_arcsec_per_s: 0.5,
         from_gear_s: 0.0,
         until_gear_s: 1e6,
+        pulse_share: crate::mount::frame::PulseShare::FULL,
     };
     let w = lp.wake(1_000, 0, &mut edges(&[]), Some(ff));
     let ra = w
@@ -203,16 +204,22 @@ fn random_input_keeps_the_rates_in_range() {
                 rate_arcsec_per_s: f32::NAN,
                 from_gear_s: 0.0,
                 until_gear_s: 1e9,
+                pulse_share: crate::mount::frame::PulseShare::FULL,
             }),
             1 => Some(FeedForward {
                 rate_arcsec_per_s: 1e30,
                 from_gear_s: 0.0,
                 until_gear_s: 1e9,
+                pulse_share: crate::mount::frame::PulseShare::FULL,
             }),
             2 => Some(FeedForward {
                 rate_arcsec_per_s: rng.below(200) as f32 / 100.0 - 1.0,
                 from_gear_s: 0.0,
                 until_gear_s: rng.below(100_000) as f64,
+                pulse_share: crate::mount::frame::PulseShare {
+                    fraction: [f32::NAN, 0.0, 0.1, 0.5, 1.0, 2.0][rng.below(6) as usize],
+                    up_to_arcsec: [f32::NAN, -1.0, 0.0, 1.0, 1e30][rng.below(5) as usize],
+                },
             }),
             _ => None,
         };
@@ -230,4 +237,92 @@ fn random_input_keeps_the_rates_in_range() {
         }
         while rng.below(3) == 0 && lp.take_frame().is_some() {}
     }
+}
+
+/// The loop driven as the board drives it: the RA axis's steps emitted
+/// tick by tick between wake-ups, edges at their times; returns the RA
+/// steps at `until_us`.
+fn drive(
+    lp: &mut ControlLoop,
+    ra: &mut super::stepping::AxisStepper,
+    now: &mut u64,
+    list: &[(Line, bool, u64)],
+    until_us: u64,
+) -> i64 {
+    let hz = u64::from(ra.tick_hz());
+    let mut pending: VecDeque<(Line, bool, u64)> = list.iter().copied().collect();
+    while *now < until_us {
+        let next_edge = pending.front().map_or(u64::MAX, |e| e.2);
+        let t = lp.next_wake_us().min(next_edge).min(until_us).max(*now + 1);
+        ra.advance(t * hz / 1_000_000 - *now * hz / 1_000_000);
+        *now = t;
+        let mut due = Vec::new();
+        while pending.front().is_some_and(|e| e.2 <= t) {
+            due.push(pending.pop_front().unwrap());
+        }
+        if let Some(r) = lp.wake(t, ra.steps(), &mut edges(&due), None).rates {
+            ra.set_rate(r.ra_steps_per_s);
+        }
+    }
+    ra.steps()
+}
+
+/// Under a learner's pulse share, a calibration (PHD2's: RA+ steps of
+/// 750 ms, then RA- back, and a 2.5 s step) moves the mount exactly as far
+/// as its pulses ask, and so does a dither (5 s); a guide pulse
+/// within the share's bound moves it that share.
+#[test]
+fn a_calibration_moves_the_mount_exactly_under_a_pulse_share() {
+    let m = mount();
+    let (mut lp, rates) = ControlLoop::start(&m, 0, 0);
+    let mut ra = super::stepping::AxisStepper::new(m.max_ra_steps_per_s(), m.config().step_tick_hz);
+    ra.set_rate(rates.ra_steps_per_s);
+    let share = crate::mount::frame::PulseShare {
+        fraction: 0.3,
+        up_to_arcsec: 1.5,
+    };
+    let ff = FeedForward {
+        rate_arcsec_per_s: 0.0,
+        from_gear_s: 0.0,
+        until_gear_s: 1e9,
+        pulse_share: share,
+    };
+    let w = lp.wake(1_000, 0, &mut edges(&[]), Some(ff));
+    ra.set_rate(w.rates.unwrap().ra_steps_per_s);
+    let mut now = 1_000;
+    let sid = m.sidereal_ra_steps_per_s_f64();
+    let guide = f64::from(m.guide_ra_steps_per_s());
+    // Steps beyond sidereal tracking at `t`.
+    let beyond = |steps: i64, t: u64| steps as f64 - sid * t as f64 * 1e-6;
+    let run = |lp: &mut ControlLoop, ra: &mut _, now: &mut u64, line, ms: u64, at: u64| {
+        let before = beyond(drive(lp, ra, now, &[], at), at);
+        let end = at + ms * 1_000;
+        let list = [(line, true, at), (line, false, end)];
+        let after = drive(lp, ra, now, &list, end + 2_000_000);
+        beyond(after, end + 2_000_000) - before
+    };
+    let mut t = 2_000_000;
+    for (line, ms, sign) in [
+        (Line::RaPlus, 750, 1.0),
+        (Line::RaPlus, 750, 1.0),
+        (Line::RaMinus, 750, -1.0),
+        (Line::RaMinus, 2_500, -1.0),
+        (Line::RaPlus, 5_000, 1.0),
+    ] {
+        let moved = run(&mut lp, &mut ra, &mut now, line, ms, t);
+        let want = sign * guide * ms as f64 * 1e-3;
+        assert!((moved - want).abs() <= 1.0, "{ms} ms: {moved} vs {want}");
+        t = now + 1_000_000;
+    }
+    let c = lp.guiding().counters();
+    assert_eq!(
+        (c.ra_pulses_made_up, c.ra_pulses_held_back),
+        (5, 0),
+        "{c:?}"
+    );
+    // A guide pulse of 100 ms (0.75 arcsec, within 1.5): 0.3 of it.
+    let moved = run(&mut lp, &mut ra, &mut now, Line::RaPlus, 100, t);
+    let want = 0.3 * guide * 0.1;
+    assert!((moved - want).abs() <= 1.0, "{moved} vs {want}");
+    assert_eq!(lp.guiding().counters().ra_pulses_held_back, 1);
 }

@@ -12,9 +12,9 @@ use static_cell::StaticCell;
 
 use hal::storage::StorageFlash;
 use mkgp_mount::control_loop::port_mount::StoreRequest;
-use mkgp_mount::model::snapshot::{Phase, SnapshotError, FORMAT_VERSION, SNAPSHOT_MAX};
+use mkgp_mount::model::snapshot::{Phase, SnapshotError};
 use mkgp_mount::mount::config::MountConfig;
-use mkgp_mount::mount::learner::Learner;
+use mkgp_mount::mount::learner::{Learner, MODEL_ONLY_FORMAT, RECORD_FORMAT, RECORD_MAX};
 use mkgp_mount::mount::worm_index::WormIndex;
 use mkgp_mount::persist::{Erase, LoadError, Park, SaveError, Store};
 use mkgp_mount::port::mount_port::ModelOrigin;
@@ -136,6 +136,10 @@ pub async fn boot_park(store: &mut FirmwareStore) -> Option<Park> {
     }
 }
 
+/// The model record's formats the firmware restores: its own, and the
+/// older one without the pulse share (the share then earned again).
+const RECORD_FORMATS: [u16; 2] = [RECORD_FORMAT, MODEL_ONLY_FORMAT];
+
 /// Takes the saved model back at start-up, with the phase from a park or
 /// unknown; returns where the model came from.
 pub async fn restore_model(
@@ -154,10 +158,10 @@ pub async fn restore_model(
     } else {
         (Phase::Unknown, ModelOrigin::Relearn)
     };
-    match flash_operation(store.load_model(FORMAT_VERSION)).await {
-        Ok(bytes) => match learner.restore(bytes, phase) {
+    match flash_operation(store.load_model_of(&RECORD_FORMATS)).await {
+        Ok((format, bytes)) => match learner.restore(bytes, format, phase) {
             Ok(()) => {
-                defmt::info!("model restored ({} bytes)", bytes.len());
+                defmt::info!("model restored ({} bytes, format {})", bytes.len(), format);
                 origin
             }
             Err(_) => {
@@ -190,10 +194,10 @@ pub async fn restore_at_index(
     let phase = Phase::Worm {
         gear_time_offset_s: index.offset_s(saved_pass, ra_steps),
     };
-    let bytes = flash_operation(store.load_model(FORMAT_VERSION))
+    let (format, bytes) = flash_operation(store.load_model_of(&RECORD_FORMATS))
         .await
         .ok()?;
-    match learner.restore(bytes, phase) {
+    match learner.restore(bytes, format, phase) {
         Ok(()) => {
             defmt::info!("model restored at the worm index's first pass");
             Some(ModelOrigin::Index)
@@ -205,14 +209,14 @@ pub async fn restore_at_index(
     }
 }
 
-/// The snapshot being written, for the store (`SNAPSHOT_MAX` bytes).
-pub type SnapshotBuffer = [u8; SNAPSHOT_MAX];
+/// The learner's record being written, for the store (`RECORD_MAX` bytes).
+pub type SnapshotBuffer = [u8; RECORD_MAX];
 
 static SNAPSHOT: StaticCell<SnapshotBuffer> = StaticCell::new();
 
 /// The snapshot buffer, once.
 pub fn snapshot_buffer() -> Option<&'static mut SnapshotBuffer> {
-    SNAPSHOT.try_init([0; SNAPSHOT_MAX])
+    SNAPSHOT.try_init([0; RECORD_MAX])
 }
 
 /// Saves the learned model, and with it the worm index's last pass if
@@ -228,7 +232,7 @@ pub async fn save_model(
     match learner.snapshot(buf) {
         Ok(n) => {
             let bytes = buf.get(..n).unwrap_or(&[]);
-            let saved = flash_operation(store.save_model(FORMAT_VERSION, bytes, erase)).await;
+            let saved = flash_operation(store.save_model(RECORD_FORMAT, bytes, erase)).await;
             let model_saved = saved.is_ok();
             report("model", saved);
             if let (true, Some(pass)) = (model_saved, index_pass) {

@@ -121,6 +121,9 @@ pub enum Field {
     Found,
     CellGear,
     CellVariance,
+    /// The pulse share the learner saves with the model
+    /// (`mount::guiding::damping::SavedShare`).
+    PulseShare,
 }
 
 /// One stage as saved.
@@ -178,8 +181,9 @@ fn check_cell(gear: f32, variance: f32) -> Result<(), Field> {
 }
 
 /// CRC-32 (IEEE 802.3, reflected, as zlib's), bit by bit: no table in
-/// flash, and a snapshot is written or read a few times a night.
-fn crc32(bytes: &[u8]) -> u32 {
+/// flash, and a snapshot is written or read a few times a night. Also the
+/// check of the pulse share saved with it (`mount::learner`).
+pub(crate) fn crc32(bytes: &[u8]) -> u32 {
     let mut crc = !0u32;
     for &b in bytes {
         crc ^= u32::from(b);

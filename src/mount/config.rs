@@ -70,6 +70,11 @@ pub struct MountConfig {
     /// Guide cycles without any pulse after which learning freezes
     /// (default 15). > 0.
     pub silence_frames: u32,
+    /// The least share of an RA guide pulse the firmware carries out once
+    /// it has measured that the pulses mostly react to noise (behind a
+    /// trusted model; `crate::mount::guiding::damping`), in [0.1, 1]
+    /// (default 0.2). 1 carries out every pulse in full.
+    pub least_pulse_share: f32,
 }
 
 impl Default for MountConfig {
@@ -98,6 +103,7 @@ impl Default for MountConfig {
             guider_aggressiveness: 0.7,
             dither_threshold_us: 3_000_000,
             silence_frames: 15,
+            least_pulse_share: 0.2,
         }
     }
 }
@@ -117,10 +123,11 @@ pub enum Field {
     GuiderAggressiveness,
     DitherThresholdUs,
     SilenceFrames,
+    LeastPulseShare,
 }
 
 impl Field {
-    pub const ALL: [Field; 12] = [
+    pub const ALL: [Field; 13] = [
         Field::RaStepsPerWormTurn,
         Field::WormPeriodS,
         Field::DecStepsPerDegree,
@@ -133,6 +140,7 @@ impl Field {
         Field::GuiderAggressiveness,
         Field::DitherThresholdUs,
         Field::SilenceFrames,
+        Field::LeastPulseShare,
     ];
 
     /// The field's name in [`MountConfig`].
@@ -150,6 +158,7 @@ impl Field {
             Field::GuiderAggressiveness => "guider_aggressiveness",
             Field::DitherThresholdUs => "dither_threshold_us",
             Field::SilenceFrames => "silence_frames",
+            Field::LeastPulseShare => "least_pulse_share",
         }
     }
 
@@ -226,6 +235,9 @@ pub const GUIDE_CADENCE_RANGE_S: (f32, f32) = (0.1, 60.0);
 pub const AGGRESSIVENESS_RANGE: (f32, f32) = (0.3, 1.0);
 /// Guide cycles of silence before learning freezes.
 pub const SILENCE_FRAMES_RANGE: (u32, u32) = (1, 1_000);
+/// The least share of a guide pulse carried out: below a tenth the loop
+/// would barely follow what the model does not explain.
+pub const LEAST_PULSE_SHARE_RANGE: (f32, f32) = (0.1, 1.0);
 
 /// `lo <= v <= hi`; false for NaN.
 fn within(v: f32, (lo, hi): (f32, f32)) -> bool {
@@ -264,6 +276,7 @@ impl MountConfig {
             Field::GuiderAggressiveness => Value::Real(c.guider_aggressiveness),
             Field::DitherThresholdUs => Value::Count(c.dither_threshold_us),
             Field::SilenceFrames => Value::Count(c.silence_frames),
+            Field::LeastPulseShare => Value::Real(c.least_pulse_share),
         }
     }
 
@@ -285,6 +298,7 @@ impl MountConfig {
             (Field::GuiderAggressiveness, Value::Real(v)) => c.guider_aggressiveness = v,
             (Field::DitherThresholdUs, Value::Count(v)) => c.dither_threshold_us = v,
             (Field::SilenceFrames, Value::Count(v)) => c.silence_frames = v,
+            (Field::LeastPulseShare, Value::Real(v)) => c.least_pulse_share = v,
             (_, other) => return Err(other),
         }
         Ok(())
@@ -409,6 +423,11 @@ impl MountConfig {
             (SILENCE_FRAMES_RANGE.0..=SILENCE_FRAMES_RANGE.1).contains(&c.silence_frames),
             SilenceFrames,
             "must be 1 to 1000",
+        )?;
+        c.require(
+            within(c.least_pulse_share, LEAST_PULSE_SHARE_RANGE),
+            LeastPulseShare,
+            "must be 0.1 to 1 (1: every guide pulse in full)",
         )?;
 
         let guide = c.guide_rate_sidereal as f64;
@@ -596,6 +615,7 @@ mod tests {
             Field::GuiderAggressiveness => c.guider_aggressiveness = real,
             Field::DitherThresholdUs => c.dither_threshold_us = count,
             Field::SilenceFrames => c.silence_frames = count,
+            Field::LeastPulseShare => c.least_pulse_share = real,
         }
     }
 
@@ -604,7 +624,7 @@ mod tests {
         use Field::*;
         let nan = f64::NAN;
         let inf = f64::INFINITY;
-        let bad: [(Field, &[f64]); 12] = [
+        let bad: [(Field, &[f64]); 13] = [
             // 0; 15.04 arcsec per step; 50 kHz tick / 2 at 1.5x sidereal.
             (
                 RaStepsPerWormTurn,
@@ -633,6 +653,7 @@ mod tests {
                 &[0.0, 1_000.0, 10_000_000.0, u32::MAX as f64],
             ),
             (SilenceFrames, &[0.0, 1_001.0]),
+            (LeastPulseShare, &[0.0, 0.09, 1.01, -0.5, nan, inf]),
         ];
         for (field, values) in bad {
             for &v in values {
@@ -645,7 +666,7 @@ mod tests {
     #[test]
     fn the_limits_themselves_are_accepted() {
         use Field::*;
-        let good: [(Field, &[f64]); 9] = [
+        let good: [(Field, &[f64]); 10] = [
             (WormPeriodS, &[60.0, 4_000.0]),
             (DecStepsPerDegree, &[240.0]),
             (GuideRateSidereal, &[0.1, 1.0]),
@@ -655,6 +676,7 @@ mod tests {
             (GuideCadenceS, &[0.1, 60.0]),
             (GuiderAggressiveness, &[0.3, 1.0]),
             (SilenceFrames, &[1.0, 1_000.0]),
+            (LeastPulseShare, &[0.1, 1.0]),
         ];
         for (field, values) in good {
             for &v in values {
@@ -739,7 +761,7 @@ mod tests {
     fn random_configs_are_refused_by_name_or_derive_sane_values() {
         let d = MountConfig::default();
         let mut rng = SplitMix64::new(11);
-        let (mut ok, mut refused_by) = (0usize, [0usize; 12]);
+        let (mut ok, mut refused_by) = (0usize, [0usize; 13]);
         for _ in 0..300_000 {
             let mut c = d;
             for field in Field::ALL {

@@ -54,6 +54,9 @@ pub struct FeedForward {
     pub from_gear_s: f64,
     /// Not applied beyond this gear time (seconds) unless replaced.
     pub until_gear_s: f64,
+    /// How much of an RA guide pulse to carry out while this feed-forward
+    /// is in effect.
+    pub pulse_share: PulseShare,
 }
 
 impl FeedForward {
@@ -62,5 +65,27 @@ impl FeedForward {
         rate_arcsec_per_s: 0.0,
         from_gear_s: 0.0,
         until_gear_s: 0.0,
+        pulse_share: PulseShare::FULL,
+    };
+}
+
+/// The share of an RA guide pulse the firmware carries out, as the learner
+/// measured it (`crate::mount::guiding::damping`): a pulse is carried out
+/// at `fraction` of the guide rate up to `up_to_arcsec` of correction
+/// asked; a longer one is carried out in full, the part held back made up
+/// at once.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PulseShare {
+    /// In (0, 1]; 1: the pulse in full.
+    pub fraction: f32,
+    /// Arcsec of correction (pulse duration x guide rate), >= 0.
+    pub up_to_arcsec: f32,
+}
+
+impl PulseShare {
+    /// Every pulse in full.
+    pub const FULL: PulseShare = PulseShare {
+        fraction: 1.0,
+        up_to_arcsec: 0.0,
     };
 }

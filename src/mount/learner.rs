@@ -12,9 +12,12 @@ use core::mem::MaybeUninit;
 use crate::model::guider::{Faults, Guider, GuiderConfig, DITHER_FRAMES};
 use crate::model::in_place::{build, uninit_field};
 use crate::model::numeric::clamp;
-use crate::model::snapshot::{Phase, Snapshot, SnapshotError, SNAPSHOT_MAX, SNAPSHOT_MAX_STAGES};
+use crate::model::snapshot::{
+    Phase, Snapshot, SnapshotError, FORMAT_VERSION, SNAPSHOT_MAX, SNAPSHOT_MAX_STAGES,
+};
 use crate::mount::config::Mount;
 use crate::mount::frame::{FeedForward, Frame, FrameKind};
+use crate::mount::guiding::damping::{Damping, SavedShare, SAVED_LEN};
 use crate::persist::MODEL_RECORD_MAX;
 
 /// Periodic stages of the firmware's model (the worm and two more), and of
@@ -23,8 +26,26 @@ use crate::persist::MODEL_RECORD_MAX;
 /// within the Cortex-M4's budgets (docs/decisions.md, "Stages in the
 /// firmware").
 pub const FIRMWARE_STAGES: usize = 3;
+
+/// The store's format of the learner's record ([`Learner::snapshot`]): the
+/// pulse share ([`SavedShare`], [`SAVED_LEN`] bytes) and then the model's
+/// snapshot (`model::snapshot`, its format 1).
+pub const RECORD_FORMAT: u16 = 2;
+/// The record before the pulse share was saved: the model's snapshot
+/// alone (format 1, a board's older save). Still restored, the share
+/// earned again.
+pub const MODEL_ONLY_FORMAT: u16 = 1;
+/// Largest record: 8,160 bytes for three stages.
+pub const RECORD_MAX: usize = SAVED_LEN + SNAPSHOT_MAX;
+// The record formats wrap the model's snapshot format 1: a new model
+// layout needs a new record format.
+const _: () = assert!(FORMAT_VERSION == MODEL_ONLY_FORMAT);
 // The firmware's snapshot fits the buffers sized for it and the store's record.
-const _: () = assert!(FIRMWARE_STAGES <= SNAPSHOT_MAX_STAGES && SNAPSHOT_MAX <= MODEL_RECORD_MAX);
+const _: () = assert!(FIRMWARE_STAGES <= SNAPSHOT_MAX_STAGES && RECORD_MAX <= MODEL_RECORD_MAX);
+
+/// The model's blend weight from which its feed-forward counts as trusted
+/// in full, and pulse damping may be earned.
+const TRUSTED_BLEND: f64 = 0.9;
 
 /// What the learner did, counted since construction.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -51,6 +72,7 @@ pub struct Learner<const N: usize> {
     cadence_s: f32,
     last_gear_s: Option<f64>,
     settling: u8,
+    damping: Damping,
     counters: LearnerCounters,
 }
 
@@ -85,8 +107,9 @@ impl<const N: usize> Learner<N> {
         uninit_field!(slot, cadence_s).write(mount.config().guide_cadence_s);
         uninit_field!(slot, last_gear_s).write(None);
         uninit_field!(slot, settling).write(0);
+        uninit_field!(slot, damping).write(Damping::new(mount.config().least_pulse_share));
         uninit_field!(slot, counters).write(LearnerCounters::default());
-        // SAFETY: all 6 fields are written.
+        // SAFETY: all 7 fields are written.
         unsafe { slot.assume_init_mut() }
     }
 
@@ -113,29 +136,68 @@ impl<const N: usize> Learner<N> {
         self.guider.reset();
         self.last_gear_s = None;
         self.settling = 0;
+        self.damping.reset();
     }
 
-    /// Write the learned model into `out` (at most
-    /// [`SNAPSHOT_MAX`] bytes) for
-    /// the store; returns the length. Not per frame: it
-    /// reads a thousand cells. Refused after a restore until the saved
-    /// data is placed (`SnapshotError::Placing`): half a worm period with
-    /// the phase unknown, a tenth with only the worm's (a quarter where no
-    /// stage can be taken apart). Keep the previous save then.
+    /// The share of the RA guide pulses carried out now (1: in full).
+    pub fn pulse_share(&self) -> f32 {
+        self.damping.fraction()
+    }
+
+    /// Write the learned model and the pulse share into `out` (at most
+    /// [`RECORD_MAX`] bytes; store it as [`RECORD_FORMAT`]); returns the
+    /// length. Not per frame: it reads a thousand cells. Refused after a
+    /// restore until the saved data is placed (`SnapshotError::Placing`):
+    /// half a worm period with the phase unknown; with only the worm's, a
+    /// tenth or until the new data picks each stage's phase (a quarter
+    /// where no stage can be taken apart). Keep the previous save then.
     pub fn snapshot(&self, out: &mut [u8]) -> Result<usize, SnapshotError> {
-        self.guider.snapshot(out)
+        let Some((share, model)) = out.split_at_mut_checked(SAVED_LEN) else {
+            return Err(SnapshotError::BufferTooSmall { needed: RECORD_MAX });
+        };
+        let n = self.guider.snapshot(model).map_err(|e| match e {
+            SnapshotError::BufferTooSmall { needed } => SnapshotError::BufferTooSmall {
+                needed: needed + SAVED_LEN,
+            },
+            e => e,
+        })?;
+        share.copy_from_slice(&self.damping.saved().to_bytes());
+        Ok(SAVED_LEN + n)
     }
 
-    /// After a power cycle: take the model back from a snapshot's bytes,
-    /// checked first (an error leaves the learner as it was). `phase`: whether
-    /// the gear's phase carried over (index or park) and by how much; see
-    /// [`Phase`]. Gear time starts again with the next frame; the counters
-    /// stay.
-    pub fn restore(&mut self, bytes: &[u8], phase: Phase) -> Result<(), SnapshotError> {
-        let snapshot = Snapshot::parse(bytes, N)?;
+    /// After a power cycle: take the model back from a record's bytes
+    /// stored as `format` ([`RECORD_FORMAT`], or [`MODEL_ONLY_FORMAT`]
+    /// with the share earned again), checked first (an error leaves the
+    /// learner as it was: a cut or garbled record, or another format).
+    /// `phase`: whether the gear's phase carried over (index or park) and
+    /// by how much; see [`Phase`]. The saved share is taken up once the
+    /// restored model is trusted. Gear time starts again with the next
+    /// frame; the counters stay.
+    pub fn restore(
+        &mut self,
+        bytes: &[u8],
+        format: u16,
+        phase: Phase,
+    ) -> Result<(), SnapshotError> {
+        let (share, model) = match format {
+            RECORD_FORMAT => {
+                let (share, model) =
+                    bytes
+                        .split_at_checked(SAVED_LEN)
+                        .ok_or(SnapshotError::Length {
+                            expected: RECORD_MAX,
+                            found: bytes.len(),
+                        })?;
+                (Some(SavedShare::parse(share)?), model)
+            }
+            MODEL_ONLY_FORMAT => (None, bytes),
+            other => return Err(SnapshotError::Version(other)),
+        };
+        let snapshot = Snapshot::parse(model, N)?;
         self.guider.restore(&snapshot, phase)?;
         self.last_gear_s = None;
         self.settling = 0;
+        self.damping.restore(share);
         Ok(())
     }
 
@@ -203,10 +265,18 @@ impl<const N: usize> Learner<N> {
         self.count(observation.is_some() && !self.refused_since(faults_before));
         let rate = change as f64 / (next + d);
         let rate = if rate.is_finite() { rate as f32 } else { 0.0 };
+        // A guide frame's pulse (0 when the guider sent none); the others
+        // (dithers, settling, silence) are carried out in full.
+        let pulse = match frame.kind {
+            FrameKind::Measured if !settling => Some(frame.pulse_arcsec),
+            _ => None,
+        };
+        let trusted = self.guider.blend_weight() >= TRUSTED_BLEND;
         FeedForward {
             rate_arcsec_per_s: rate,
             from_gear_s: t,
             until_gear_s: t + 3.0 * next.max(cadence),
+            pulse_share: self.damping.frame(pulse, trusted),
         }
     }
 }
@@ -247,14 +317,15 @@ mod tests {
         assert_eq!((c.frames, c.learned, c.dithers), (51, 50, 1));
     }
 
-    /// A learner restored from another's bytes holds the same model; bad
-    /// bytes are refused and change nothing.
+    /// A learner restored from another's bytes holds the same model and
+    /// pulse share; bad bytes are refused and change nothing; a board's
+    /// older record (the model alone) is restored with the share earned
+    /// again.
     #[test]
     fn restore_takes_the_model_back_and_refuses_bad_bytes() {
-        use crate::model::snapshot::SNAPSHOT_MAX;
         let m = MountConfig::default().validate().unwrap();
         let mut a: std::boxed::Box<Learner<2>> = std::boxed::Box::new(Learner::new(&m));
-        for k in 0..500 {
+        for k in 0..1500 {
             let t = 2.0 * k as f64;
             a.learn(Frame {
                 gear_time_s: t,
@@ -262,34 +333,68 @@ mod tests {
                 kind: FrameKind::Measured,
                 gear_error_arcsec: (t * 0.02).sin() as f32,
                 applied_arcsec: 0.0,
-                pulse_arcsec: 0.0,
+                // Anti-correlated pulses: a share is earned.
+                pulse_arcsec: if k % 2 == 0 { 0.2 } else { -0.2 },
                 filled: false,
             });
         }
-        let mut bytes = [0u8; SNAPSHOT_MAX];
+        let share = a.pulse_share();
+        assert!(share < 0.5, "{share}");
+        let mut bytes = [0u8; RECORD_MAX];
         let n = a.snapshot(&mut bytes).unwrap();
+        assert_eq!(
+            a.snapshot(&mut [0u8; 8]),
+            Err(SnapshotError::BufferTooSmall { needed: RECORD_MAX })
+        );
         let mut b: std::boxed::Box<Learner<2>> = std::boxed::Box::new(Learner::new(&m));
         let unknown = Phase::Unknown;
-        assert!(b.restore(&bytes[..n - 1], unknown).is_err());
-        bytes[100] ^= 0x40;
+        // Cut anywhere (in the share or the model): refused.
+        for cut in [0, SAVED_LEN - 1, SAVED_LEN, n - 1] {
+            assert!(b.restore(&bytes[..cut], RECORD_FORMAT, unknown).is_err());
+        }
+        // Garbled in the model, then in the share: refused.
+        for at in [100, 3] {
+            bytes[at] ^= 0x40;
+            assert_eq!(
+                b.restore(&bytes[..n], RECORD_FORMAT, unknown),
+                Err(SnapshotError::Checksum)
+            );
+            bytes[at] ^= 0x40;
+        }
         assert_eq!(
-            b.restore(&bytes[..n], unknown),
-            Err(SnapshotError::Checksum)
+            b.restore(&bytes[..n], 3, unknown),
+            Err(SnapshotError::Version(3))
         );
+        // The model's snapshot alone read as the current record: refused.
+        assert!(b
+            .restore(&bytes[SAVED_LEN..n], RECORD_FORMAT, unknown)
+            .is_err());
         assert_eq!(b.guider().period_s(0), m.config().worm_period_s as f64);
-        bytes[100] ^= 0x40;
+        assert_eq!(b.pulse_share(), 1.0);
         let known = Phase::Known {
             gear_time_offset_s: 1000.0,
         };
-        assert_eq!(b.restore(&bytes[..n], known), Ok(()));
-        let mut again = [0u8; SNAPSHOT_MAX];
+        assert_eq!(b.restore(&bytes[..n], RECORD_FORMAT, known), Ok(()));
+        assert_eq!(b.pulse_share(), share);
+        let mut again = [0u8; RECORD_MAX];
         let n2 = b.snapshot(&mut again).unwrap();
         let (sa, sb) = (
-            Snapshot::parse(&bytes[..n], 2).unwrap(),
-            Snapshot::parse(&again[..n2], 2).unwrap(),
+            Snapshot::parse(&bytes[SAVED_LEN..n], 2).unwrap(),
+            Snapshot::parse(&again[SAVED_LEN..n2], 2).unwrap(),
         );
         assert!(sa.cells().eq(sb.cells()));
         assert_eq!((sa.stage(0), sa.stage(1)), (sb.stage(0), sb.stage(1)));
+        assert_eq!(bytes[..SAVED_LEN], again[..SAVED_LEN]);
+        // An older board's record: the model alone, the share unknown.
+        let mut c: std::boxed::Box<Learner<2>> = std::boxed::Box::new(Learner::new(&m));
+        assert_eq!(
+            c.restore(&bytes[SAVED_LEN..n], MODEL_ONLY_FORMAT, known),
+            Ok(())
+        );
+        assert_eq!(c.pulse_share(), 1.0);
+        let n3 = c.snapshot(&mut again).unwrap();
+        let sc = Snapshot::parse(&again[SAVED_LEN..n3], 2).unwrap();
+        assert!(sa.cells().eq(sc.cells()));
     }
 
     /// F5 through the learner: an observation the model refuses (beyond

@@ -9,7 +9,7 @@ use crate::mount::config::{Field, MountConfig, Value};
 /// Layout version of the configuration record. Change it whenever a field
 /// is added, removed, reordered or changes its unit: a record of another
 /// layout is then refused instead of misread.
-pub const CONFIG_FORMAT: u16 = 1;
+pub const CONFIG_FORMAT: u16 = 2;
 
 /// Bytes of an encoded configuration: one 32-bit word per field.
 pub const CONFIG_RECORD_LEN: usize = 4 * Field::ALL.len();
@@ -51,6 +51,7 @@ pub fn decode(bytes: &[u8]) -> Option<MountConfig> {
         guider_aggressiveness: f32::from_bits(count()?),
         dither_threshold_us: count()?,
         silence_frames: count()?,
+        least_pulse_share: f32::from_bits(count()?),
     })
 }
 
@@ -60,7 +61,7 @@ mod tests {
     use crate::testing::SplitMix64;
 
     /// Every field's bits, as `encode` writes them.
-    fn bits(c: &MountConfig) -> [u32; 12] {
+    fn bits(c: &MountConfig) -> [u32; 13] {
         Field::ALL.map(|f| match c.get(f) {
             Value::Count(v) => v,
             Value::Real(v) => v.to_bits(),

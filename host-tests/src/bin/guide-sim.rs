@@ -7,6 +7,7 @@
 //! guide-sim bench [--csv] [--host-only]
 //! guide-sim st4 [--case ID] [--cases FILE] [--noise PX] [--csv]
 //!               [--aggressiveness A] [--exposure S] [--min-move PX] [--calibration K]
+//!               [--drift A] [--walk W] [--bump B] [--least-pulse-share F]
 //! guide-sim nights [--case ID] [--cases FILE] [--noise PX] [--park] [--csv]
 //! guide-sim mount [--pty PATH] [--tcp PORT] [--case ID] [--cases FILE] [--noise PX]
 //!                 [--speed X] [--no-st4-guider]
@@ -215,6 +216,18 @@ struct St4Args {
     /// The guide rate the guider's calibration found over the true one
     #[arg(long, value_name = "K", value_parser = in_range(0.1, 10.0), default_value = "1")]
     calibration: f64,
+    /// A constant RA drift of the star, arcsec per minute
+    #[arg(long, value_name = "A", value_parser = in_range(-100.0, 100.0), default_value = "0")]
+    drift: f64,
+    /// A random walk of the star, arcsec per square root of a minute
+    #[arg(long, value_name = "W", value_parser = in_range(0.0, 100.0), default_value = "0")]
+    walk: f64,
+    /// A bump: the star steps by this many arcsec at 900 s, back at 1800 s, and so on
+    #[arg(long, value_name = "B", value_parser = in_range(-100.0, 100.0), default_value = "0")]
+    bump: f64,
+    /// The firmware's least share of a guide pulse (1: every pulse in full)
+    #[arg(long, value_name = "F", value_parser = in_range(0.1, 1.0), default_value = "0.2")]
+    least_pulse_share: f64,
 }
 
 /// A parser of numbers in [lo, hi].
@@ -708,13 +721,21 @@ fn cmd_st4(args: St4Args) -> ExitCode {
         return ExitCode::FAILURE;
     };
     let csv = args.runs.csv;
-    let guider = st4_sim::GuiderSettings {
-        aggressiveness: args.aggressiveness,
-        exposure_s: args.exposure,
-        min_move: args.min_move,
-        calibration: args.calibration,
+    let setup = st4_sim::Setup {
+        guider: st4_sim::GuiderSettings {
+            aggressiveness: args.aggressiveness,
+            exposure_s: args.exposure,
+            min_move: args.min_move,
+            calibration: args.calibration,
+        },
+        sky: st4_sim::Sky {
+            drift_arcsec_per_min: args.drift,
+            walk_arcsec_per_sqrt_min: args.walk,
+            bump_arcsec: args.bump,
+        },
+        least_pulse_share: args.least_pulse_share as f32,
     };
-    let rows = st4_sim::table_with(&cases, &levels, guider);
+    let rows = st4_sim::table_with(&cases, &levels, setup);
     if csv {
         println!("{}", st4_sim::CSV_HEADER);
         for r in &rows {

@@ -26,7 +26,7 @@ use crate::model::spectral::period::PeriodTracker;
 
 mod harmonics;
 
-use harmonics::Harmonics;
+use harmonics::{Harmonics, StagePhase};
 
 /// Whole worm periods tried as the gap between the saved data and the
 /// first new frame. Beyond 8 (an hour at 432 s) a stage's envelope (20
@@ -50,6 +50,15 @@ const WORM_PHASE_SEARCH_PERIODS: f64 = 0.25;
 /// 0.05, which placed C8's 110 s stage wrongly, and 0.15 and 0.25, which
 /// leave the stages out longer; docs/model.md).
 const STAGE_PHASE_SEARCH_PERIODS: f64 = 0.1;
+/// Until the new data picks each stage's phase this clearly (its contrast
+/// to the next best phase, in the residuals' variance: 4 is twice the
+/// log-likelihood ratio of e²), the search waits for more, in steps of
+/// [`STAGE_PHASE_SEARCH_STEP_PERIODS`] worm periods up to
+/// [`STAGE_PHASE_SEARCH_MAX_PERIODS`]. Noise-free data picks every stage at
+/// the first try (measured on `guide-sim nights`, docs/model.md).
+const STAGE_PHASE_CONTRAST: f64 = 4.0;
+const STAGE_PHASE_SEARCH_STEP_PERIODS: f64 = 0.05;
+const STAGE_PHASE_SEARCH_MAX_PERIODS: f64 = 0.5;
 /// Phase error per second of gap between the saved data and the first new
 /// frame, s/s: the relative error of a tracked period (C5 after 8,000 s in
 /// `f32`: 432.23 s for 432 s, 5e-4).
@@ -87,6 +96,8 @@ enum Place {
 #[derive(Clone, Copy, Debug)]
 pub(super) struct PhaseSearch<const N: usize> {
     new_from: usize,
+    /// Worm periods of new data the search waits for.
+    wait_periods: f64,
     /// The restored data is not placed at any known phase: no prediction
     /// until the search has placed it.
     blocks: bool,
@@ -194,6 +205,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         if resume.place == Place::Search {
             self.phase_search = Some(PhaseSearch {
                 new_from: self.grid.len(),
+                wait_periods: PHASE_SEARCH_PERIODS,
                 blocks: true,
                 stages: None,
             });
@@ -219,6 +231,11 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             let completed = libm::floor((at - end) / CELL_S) + 1.0;
             self.phase_search = Some(PhaseSearch {
                 new_from: saved + completed.max(0.0) as usize,
+                wait_periods: if stages.is_some() {
+                    STAGE_PHASE_SEARCH_PERIODS
+                } else {
+                    WORM_PHASE_SEARCH_PERIODS
+                },
                 blocks: false,
                 stages: stages.map(|h| (saved, h)),
             });
@@ -278,14 +295,18 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             .shift_gear_with(0..cells, |i| scratch.get(i).map_or(0.0, |c| c.to_f64()));
     }
 
-    /// Put the stages taken out of the restored cells (held `..saved`, see
-    /// [`take_out_stages`](Self::take_out_stages)) back at the phases the
-    /// new data (held `new_from..`) shows: each stage's shift, in turn,
-    /// that best explains what the new data holds beyond the level, the
-    /// slope, the worm and the stages already placed; then the restored
-    /// cells move to the level of what remains. A stage the new data
-    /// cannot place (too little measured) stays out of the restored cells.
-    fn put_back_stages(&mut self, saved: usize, new_from: usize, h: &Harmonics<N>) {
+    /// The phases at which the new data (held `new_from..`) shows the
+    /// stages taken out of the restored cells (see
+    /// [`take_out_stages`](Self::take_out_stages)): each stage's shift, in
+    /// turn, that best explains what the new data holds beyond the level,
+    /// the slope, the worm and the stages already placed (`None`: too
+    /// little measured to place it); and the level of what remains. Leaves
+    /// the remainder in the scratch buffer.
+    fn find_stage_phases(
+        &mut self,
+        new_from: usize,
+        h: &Harmonics<N>,
+    ) -> ([Option<StagePhase>; N], f64) {
         // What the new cells hold beyond the level, the slope and the worm
         // (NaN: not measured), in the scratch buffer.
         let new = self.grid.len().saturating_sub(new_from);
@@ -299,8 +320,8 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
                 S::from_f64(f64::NAN)
             };
         }
-        let mut shifts = [None; N];
-        for (s, shift) in shifts.iter_mut().enumerate().skip(1) {
+        let mut phases = [None; N];
+        for (s, phase) in phases.iter_mut().enumerate().skip(1) {
             if !h.has_stage(s) {
                 continue;
             }
@@ -309,11 +330,11 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
                 let r = scratch.get(j)?.to_f64();
                 r.is_finite().then_some((t0 + CELL_S * j as f64, r))
             });
-            *shift = h.phase(s, residuals);
-            if let Some(delta) = *shift {
+            *phase = h.phase(s, residuals);
+            if let Some(found) = *phase {
                 for (j, r) in self.scratch.iter_mut().enumerate().take(new) {
                     let t = t0 + CELL_S * j as f64;
-                    *r -= S::from_f64(h.stage(s, t + delta));
+                    *r -= S::from_f64(h.stage(s, t + found.shift_s));
                 }
             }
         }
@@ -325,11 +346,25 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             .filter(|r| r.is_finite())
             .fold((0.0, 0u32), |(sum, n), r| (sum + r, n + 1));
         let level = if n > 0 { sum / f64::from(n) } else { 0.0 };
+        (phases, level)
+    }
+
+    /// Put the stages taken out of the restored cells (held `..saved`) back
+    /// at `phases` ([`find_stage_phases`](Self::find_stage_phases)), and
+    /// move the restored cells to `level`. A stage without a phase stays
+    /// out of the restored cells.
+    fn put_back_stages(
+        &mut self,
+        saved: usize,
+        h: &Harmonics<N>,
+        phases: &[Option<StagePhase>; N],
+        level: f64,
+    ) {
         let mut placed = *h;
         placed.clear(0);
-        for (s, shift) in shifts.iter().enumerate().skip(1) {
-            match shift {
-                Some(delta) => placed.shift(s, *delta),
+        for (s, phase) in phases.iter().enumerate().skip(1) {
+            match phase {
+                Some(found) => placed.shift(s, found.shift_s),
                 None => placed.clear(s),
             }
         }
@@ -341,26 +376,35 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     }
 
     /// Whether the model must wait for the phase search (the restored data
-    /// is not placed yet: no prediction); runs the search when
-    /// [`PHASE_SEARCH_PERIODS`] (or [`WORM_PHASE_SEARCH_PERIODS`]) of new
-    /// data are in. Called before each fit.
+    /// is not placed yet: no prediction); runs the search when the new data
+    /// reaches the search's wait. Called before each fit.
     pub(super) fn phase_search_pending(&mut self) -> bool {
         let Some(search) = self.phase_search else {
             return false;
         };
         let worm_cells = libm::ceil(self.trackers[0].period_s / CELL_S);
         let new_cells = self.grid.len().saturating_sub(search.new_from);
-        let wait = match (search.blocks, search.stages.is_some()) {
-            (true, _) => PHASE_SEARCH_PERIODS,
-            (false, true) => STAGE_PHASE_SEARCH_PERIODS,
-            (false, false) => WORM_PHASE_SEARCH_PERIODS,
-        };
-        if (new_cells as f64) < wait * worm_cells && self.grid.len() < GRID_CELLS {
+        let full = self.grid.len() >= GRID_CELLS;
+        if (new_cells as f64) < search.wait_periods * worm_cells && !full {
             return search.blocks;
         }
         self.phase_search = None;
         match search.stages {
-            Some((saved, h)) => self.put_back_stages(saved, search.new_from, &h),
+            Some((saved, h)) => {
+                let (phases, level) = self.find_stage_phases(search.new_from, &h);
+                let placed = phases
+                    .iter()
+                    .flatten()
+                    .all(|p| p.contrast >= STAGE_PHASE_CONTRAST);
+                if placed || full || search.wait_periods >= STAGE_PHASE_SEARCH_MAX_PERIODS {
+                    self.put_back_stages(saved, &h, &phases, level);
+                } else {
+                    self.phase_search = Some(PhaseSearch {
+                        wait_periods: search.wait_periods + STAGE_PHASE_SEARCH_STEP_PERIODS,
+                        ..search
+                    });
+                }
+            }
             None => self.search_phase(search.new_from, !search.blocks),
         }
         false

@@ -3,7 +3,7 @@
 
 use super::{GuidingCounters, FADE_FRAMES};
 use crate::model::numeric::clamp;
-use crate::mount::frame::FeedForward;
+use crate::mount::frame::{FeedForward, PulseShare};
 
 pub(super) struct FeedForwardState {
     installed: FeedForward,
@@ -48,6 +48,10 @@ impl FeedForwardState {
         }
         let limit = self.limit_arcsec_per_s;
         let mut ff = ff;
+        let share = ff.pulse_share;
+        if !(share.fraction > 0.0 && share.fraction <= 1.0 && share.up_to_arcsec >= 0.0) {
+            ff.pulse_share = PulseShare::FULL;
+        }
         if ff.rate_arcsec_per_s.abs() > limit {
             counters.feed_forward_limited = counters.feed_forward_limited.saturating_add(1);
             ff.rate_arcsec_per_s = clamp(ff.rate_arcsec_per_s, -limit, limit);
@@ -76,6 +80,16 @@ impl FeedForwardState {
             return 0.0;
         }
         self.installed.rate_arcsec_per_s * self.fade(now_us, last_heard_us)
+    }
+
+    /// The share of a pulse starting at `now_us`: the installed one while
+    /// the feed-forward is in full effect, else full pulses.
+    pub fn share(&self, now_us: u64, last_heard_us: Option<u64>) -> PulseShare {
+        if self.active && self.fade(now_us, last_heard_us) >= 1.0 {
+            self.installed.pulse_share
+        } else {
+            PulseShare::FULL
+        }
     }
 
     /// Expire past the horizon at gear time `gear_s`, count a complete fade.

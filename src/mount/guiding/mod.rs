@@ -102,8 +102,10 @@
 //! NaN never leaves: every input that could carry one is checked.
 
 mod applied;
+pub mod damping;
 mod feed_forward;
 mod framer;
+mod share;
 #[cfg(test)]
 mod tests;
 
@@ -114,6 +116,7 @@ use crate::mount::st4::{Axis, Direction, St4Event};
 use applied::Applied;
 use feed_forward::FeedForwardState;
 use framer::Framer;
+use share::SharedPulse;
 
 /// Cadences over which the feed-forward is faded out after a silence.
 pub const FADE_FRAMES: u32 = 5;
@@ -151,6 +154,10 @@ pub struct GuidingCounters {
     pub time_backwards: u32,
     /// Pulse ends for an axis without a pulse (ignored).
     pub stray_ends: u32,
+    /// RA pulses carried out in part (`damping`), and of those that
+    /// started so, the ones that turned out long and were made up in full.
+    pub ra_pulses_held_back: u32,
+    pub ra_pulses_made_up: u32,
 }
 
 /// The motion the command port asks for besides guide pulses: tracking on
@@ -185,6 +192,14 @@ pub struct Guiding {
     /// The active pulse per axis: direction and start.
     ra_pulse: Option<(Direction, u64)>,
     dec_pulse: Option<(Direction, u64)>,
+    /// The active RA pulse's share, when it is not carried out in full, and
+    /// an ended one still making up what it held back.
+    ra_share: Option<SharedPulse>,
+    ra_finishing: Option<SharedPulse>,
+    /// Extra guide rate (multiple of it) that keeps the RA rate in range
+    /// while a pulse makes up, RA+ and RA-.
+    make_up: [f32; 2],
+    guide_arcsec_per_s: f32,
     /// What the command port asked beyond guide pulses (none by default).
     motion: Motion,
     applied: Applied,
@@ -208,6 +223,14 @@ impl Guiding {
         let guide_arcsec_per_s = mount.guide_rate_arcsec_per_s();
         let cadence_us = (c.guide_cadence_s as f64 * 1e6) as u64;
         let worm_period_us = (c.worm_period_s as f64 * 1e6) as u64;
+        // Half the headroom each way, at most the guide rate again: the
+        // feed-forward (at most the guide rate) rarely meets the clamp.
+        let guide = mount.guide_ra_steps_per_s() as f64;
+        let headroom = |room: f64| (0.5 * room / guide).clamp(0.0, 1.0) as f32;
+        let make_up = [
+            headroom(mount.max_ra_steps_per_s() as f64 - sidereal_sps - guide),
+            headroom(sidereal_sps - guide),
+        ];
         Guiding {
             ra_guide_sps: finite_or_zero(mount.guide_ra_steps_per_s()),
             dec_guide_sps: finite_or_zero(mount.guide_dec_steps_per_s()),
@@ -215,6 +238,10 @@ impl Guiding {
             max_dec_sps: finite_or_zero(mount.max_dec_steps_per_s()),
             ra_pulse: None,
             dec_pulse: None,
+            ra_share: None,
+            ra_finishing: None,
+            make_up,
+            guide_arcsec_per_s: finite_or_zero(guide_arcsec_per_s),
             motion: Motion::TRACKING,
             applied: Applied::new(sidereal_sps, SIDEREAL_ARCSEC_PER_S / sidereal_sps),
             frames: Framer::new(
@@ -292,6 +319,7 @@ impl Guiding {
                 }
                 self.heard(at_us);
                 self.ra_pulse = Some((direction, at_us));
+                self.ra_share = self.share_for(direction, at_us);
                 self.frames.open(self.applied.mark_at(at_us), direction);
             }
             St4Event::PulseStart {
@@ -327,11 +355,49 @@ impl Guiding {
         }
     }
 
+    /// The share of an RA pulse starting at `at_us`: damped only while the
+    /// learner's feed-forward is in full effect and the port adds no motion.
+    fn share_for(&self, direction: Direction, at_us: u64) -> Option<SharedPulse> {
+        if self.motion != Motion::TRACKING {
+            return None;
+        }
+        let share = self
+            .feed_forward
+            .share(at_us, self.frames.last_activity_us());
+        let make_up = match direction {
+            Direction::Plus => self.make_up[0],
+            Direction::Minus => self.make_up[1],
+        };
+        SharedPulse::start(direction, at_us, share, self.guide_arcsec_per_s, make_up)
+    }
+
+    /// The next time a shared RA pulse changes its rate, µs.
+    pub fn next_change_us(&self) -> Option<u64> {
+        let now = self.applied.last_us();
+        [self.ra_share, self.ra_finishing]
+            .into_iter()
+            .flatten()
+            .filter_map(|s| s.next_change_us(now))
+            .min()
+    }
+
     /// The RA pulse ended at `at_us`: complete its frame.
     fn end_ra(&mut self, at_us: u64) {
         let Some((_, start_us)) = self.ra_pulse.take() else {
             return;
         };
+        if let Some(mut share) = self.ra_share.take() {
+            let goes_on = share.end(at_us);
+            if share.held_back() {
+                self.counters.ra_pulses_held_back =
+                    self.counters.ra_pulses_held_back.saturating_add(1);
+            } else {
+                self.counters.ra_pulses_made_up = self.counters.ra_pulses_made_up.saturating_add(1);
+            }
+            if goes_on {
+                self.ra_finishing = Some(share);
+            }
+        }
         self.frames
             .close(start_us, at_us, &mut self.applied, &mut self.counters);
     }
@@ -374,7 +440,16 @@ impl Guiding {
         let ff_sps = self.feed_forward.rate(now_us, heard) as f64 / self.applied.arcsec_per_step();
 
         let sidereal_sps = self.applied.sidereal_sps();
-        let guide = self.ra_pulse.map_or(0.0, |(d, _)| d.sign()) * self.ra_guide_sps;
+        if self.ra_finishing.is_some_and(|s| !s.running(now_us)) {
+            self.ra_finishing = None;
+        }
+        let pulse = match (self.ra_pulse, self.ra_share) {
+            (Some(_), Some(share)) => share.guide(now_us),
+            (Some((d, _)), None) => d.sign(),
+            (None, _) => 0.0,
+        };
+        let finishing = self.ra_finishing.map_or(0.0, |s| s.guide(now_us));
+        let guide = (pulse + finishing) * self.ra_guide_sps;
         let ra = (sidereal_sps + guide as f64 + ff_sps) as f32;
         let clamp_ra = |ra: f32| {
             if ra.is_finite() {

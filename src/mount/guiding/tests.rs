@@ -69,6 +69,7 @@ fn feed_forward_is_checked_and_limited() {
         rate_arcsec_per_s: f32::NAN,
         from_gear_s: 0.0,
         until_gear_s: 10.0,
+        pulse_share: crate::mount::frame::PulseShare::FULL,
     });
     assert_eq!(g.counters().feed_forward_rejected, 1);
     let r = g.rates(1_000, 0);
@@ -77,6 +78,7 @@ fn feed_forward_is_checked_and_limited() {
         rate_arcsec_per_s: -1e9,
         from_gear_s: 0.0,
         until_gear_s: 10.0,
+        pulse_share: crate::mount::frame::PulseShare::FULL,
     });
     assert_eq!(g.counters().feed_forward_limited, 1);
     g.on_event(start(Direction::Minus, 2_000));
@@ -142,6 +144,7 @@ fn silence_fills_then_freezes_then_fades() {
         rate_arcsec_per_s: 0.5,
         from_gear_s: 1.0,
         until_gear_s: 1e9,
+        pulse_share: crate::mount::frame::PulseShare::FULL,
     });
     // Up to just before one worm period after the pulse (its end, the
     // last the guider was heard): full feed-forward.

@@ -33,10 +33,10 @@ use mkgp_mount::control_loop::port_mount::{LearnedFrame, PortMount, PortState};
 use mkgp_mount::control_loop::st4_feed::{EdgeQueue, EdgeSource, RawEdge};
 use mkgp_mount::control_loop::ControlLoop;
 use mkgp_mount::model::guider::{Guider, GuiderConfig};
-use mkgp_mount::model::snapshot::{Phase, SNAPSHOT_MAX};
+use mkgp_mount::model::snapshot::Phase;
 use mkgp_mount::mount::config::{Mount, MountConfig};
 use mkgp_mount::mount::frame::{FeedForward, Frame, FrameKind};
-use mkgp_mount::mount::learner::{Learner, FIRMWARE_STAGES};
+use mkgp_mount::mount::learner::{Learner, FIRMWARE_STAGES, RECORD_FORMAT, RECORD_MAX};
 use mkgp_mount::port::mount_port::{Identity, StepCounts};
 use mkgp_mount::port::{Interpreter, ReplySink};
 use mkgp_mount::safety::reset_cause::ResetCause;
@@ -105,7 +105,7 @@ fn main() -> ! {
     // above again: a second model would not fit the stack) with the phase
     // known, with the worm's and unknown, and the frames that place its
     // data (the phase search after half a worm period).
-    let mut bytes = [0u8; SNAPSHOT_MAX];
+    let mut bytes = [0u8; RECORD_MAX];
     let n = learner.snapshot(black_box(&mut bytes)).unwrap_or(0);
     let saved = black_box(bytes.get(..n).unwrap_or(&[]));
     let phases = [
@@ -118,7 +118,10 @@ fn main() -> ! {
         Phase::Unknown,
     ];
     for phase in phases {
-        if learner.restore(saved, black_box(phase)).is_err() {
+        if learner
+            .restore(saved, black_box(RECORD_FORMAT), black_box(phase))
+            .is_err()
+        {
             exit(false)
         }
         for k in 0..RESTORED_FRAMES {

@@ -42,6 +42,14 @@ const SEPARATION: f64 = 2.0;
 /// from making them singular.
 const RIDGE: f64 = 1e-9;
 
+/// A stage's phase found in new data: the shift that places it, s, and how
+/// clearly the data picks it (see [`Harmonics::phase`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct StagePhase {
+    pub(super) shift_s: f64,
+    pub(super) contrast: f64,
+}
+
 /// The saved cells as a level, a slope and each stage's harmonics, on the
 /// grid's time (s from the grid's origin).
 #[derive(Clone, Copy, Debug)]
@@ -275,13 +283,13 @@ impl<const N: usize> Harmonics<N> {
     /// `residuals` (grid time and gear error less everything but stage
     /// `s`) as stage `s`'s share at `t + δ` plus a level: least squares,
     /// over [`PHASE_STEPS`] candidates per period, refined by the parabola
-    /// through the best and its neighbours. `None` with fewer than 3
-    /// residuals.
+    /// through the best and its neighbours; with the contrast to the best
+    /// other local minimum. `None` with fewer than 3 residuals.
     pub(super) fn phase(
         &self,
         s: usize,
         residuals: impl Iterator<Item = (f64, f64)> + Clone,
-    ) -> Option<f64> {
+    ) -> Option<StagePhase> {
         let (Some(coeffs), Some(&period)) = (self.coeffs.get(s), self.periods.get(s)) else {
             return None;
         };
@@ -322,8 +330,20 @@ impl<const N: usize> Harmonics<N> {
         } else {
             0.0
         };
-        let delta = (best as f64 + offset) * period / PHASE_STEPS as f64;
-        delta.is_finite().then_some(delta)
+        let shift_s = (best as f64 + offset) * period / PHASE_STEPS as f64;
+        // How much better the best shift explains the residuals than the
+        // best other local minimum, in their variance (less the level and
+        // the shift fitted): a short stretch of a stage, a level fitted, is
+        // nearly a line, and noise can flip the curvature that tells two
+        // shifts apart. Infinite with no other minimum.
+        let variance = at.max(0.0) / n.saturating_sub(2).max(1) as f64;
+        let rival = (PHASE_STEPS / 8..=PHASE_STEPS - PHASE_STEPS / 8)
+            .map(|d| cost(best + d))
+            .fold(f64::INFINITY, f64::min);
+        let contrast = (rival - at) / variance.max(f64::MIN_POSITIVE);
+        shift_s
+            .is_finite()
+            .then_some(StagePhase { shift_s, contrast })
     }
 }
 
@@ -380,9 +400,40 @@ mod tests {
             (t, stage(t + 60.0) - 2.0)
         });
         let found = h.phase(1, residuals).unwrap();
-        assert!((found - 60.0).abs() < 0.2, "{found}");
-        h.shift(1, found);
+        assert!((found.shift_s - 60.0).abs() < 0.2, "{found:?}");
+        assert!(found.contrast > 100.0, "{found:?}");
+        h.shift(1, found.shift_s);
         assert!((h.stage(1, 6000.0) - stage(6060.0)).abs() < 0.05);
+    }
+
+    #[test]
+    fn noise_that_leaves_the_phase_open_shows_as_low_contrast() {
+        let h = fit([432.0, 155.0]).unwrap();
+        // The stage 60 s on under 6 px of noise (uniform, from a fixed
+        // linear congruential sequence).
+        let mut state = 12345u64;
+        let noise: Vec<f64> = (0..200)
+            .map(|_| {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                12.0 * ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5)
+            })
+            .collect();
+        let residuals = |cells: usize| {
+            let noise = noise.clone();
+            (0..cells).map(move |j| {
+                let t = 6000.0 + 5.0 * j as f64;
+                (t, stage(t + 60.0) + noise[j])
+            })
+        };
+        // Nine cells cannot tell the phase from a level and the noise;
+        // two stage periods can.
+        let short = h.phase(1, residuals(9)).unwrap();
+        assert!(short.contrast < 4.0, "{short:?}");
+        let long = h.phase(1, residuals(62)).unwrap();
+        assert!(long.contrast > 4.0, "{long:?}");
+        assert!((long.shift_s - 60.0).abs() < 5.0, "{long:?}");
     }
 
     #[test]

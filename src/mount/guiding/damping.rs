@@ -1,0 +1,362 @@
+//! How much of the guider's RA pulses the firmware carries out, earned by
+//! measurement (docs/decisions.md, "Pulse damping").
+//!
+//! Behind a learned feed-forward the guider's pulses do two things: they
+//! correct what the model does not explain, and they react to the noise of
+//! the star's measurement. Obeyed in full, the reaction to the noise is the
+//! loop's floor (docs/results.md). The pulses themselves tell the two
+//! apart: a loop that reacts to white noise more than it should makes
+//! successive measurements, hence successive pulses, anti-correlated (a
+//! loop of gain G on white noise alone: correlation -G/2 between
+//! neighbours), while an error the loop follows too slowly makes them
+//! correlated. The loop that weighs the noise against the error it
+//! follows at best (a Kalman filter's gain) leaves its measurements
+//! uncorrelated. So the learner scales the share of each pulse it carries
+//! out by the measured correlation of neighbouring pulses, frame by frame,
+//! down to the configured least share. No guider setting enters: the
+//! correlation does not depend on the pulses' scale.
+//!
+//! Full pulses at once: while the model is not trusted in full, for a
+//! frame that is not a plain guide frame (a dither and its settling, the
+//! guider silent), and for a pulse far beyond the recent ones (the error is
+//! not explained: a bump, a calibration step). The fast part carries out
+//! in full any pulse longer than [`PulseShare::up_to_arcsec`] and makes up
+//! what it held back (`super::share`).
+//!
+//! Across a power cycle: the share and the statistics behind it are saved
+//! with the model ([`SavedShare`], in the learner's record), so a night
+//! restored with a trusted model does not spend its first minutes earning
+//! the share again (about 7 minutes of full pulses otherwise). The saved
+//! share is used only while the restored model is trusted.
+
+use crate::model::numeric::clamp;
+use crate::model::snapshot::{crc32, Field, SnapshotError};
+use crate::mount::frame::PulseShare;
+
+/// Frames the pulse statistics average over (about two minutes at 2 s):
+/// the correlation's spread is about 1 / sqrt(frames).
+const WINDOW_FRAMES: u32 = 64;
+/// Relative change of the share per frame and unit of correlation: from
+/// full to a third in about 100 frames of noise alone.
+const RATE: f32 = 0.05;
+/// After a restore, the share above the saved one while the pulses are
+/// anti-correlated (noise again, the restored model's placement over)
+/// returns this fraction of the way to it per frame: within a minute.
+const BACK_PER_FRAME: f32 = 0.05;
+/// A pulse beyond this many times the RMS of the recent pulses is no
+/// reaction to noise.
+const OUTLIER_RMS: f32 = 4.0;
+/// Bounds of the saved statistics (arcsec^2): far beyond any pulse a
+/// guider sends, inside what the running means take in `f32`.
+const MAX_SAVED_SQUARE: f32 = 1e6;
+
+/// The measured share of the RA guide pulses to carry out.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Damping {
+    /// The configured least share; 1 switches damping off.
+    least: f32,
+    fraction: f32,
+    /// Running means of the pulse squared and of the product of
+    /// neighbouring pulses, arcsec^2.
+    square: f32,
+    lagged: f32,
+    /// The previous frame's pulse, if that frame was a guide frame.
+    previous: Option<f32>,
+    scored: u32,
+    /// A share restored with the model, returned to while the pulses are
+    /// anti-correlated.
+    restored: Option<f32>,
+}
+
+/// The damping as saved with the model: [`SAVED_LEN`] bytes, little-endian:
+/// the share, the mean square of the pulses and the mean product of
+/// neighbouring ones (`f32` each), and the CRC-32 of those 12 bytes. A
+/// damping that has measured nothing yet saves share 1 and zeros: nothing
+/// to restore.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SavedShare {
+    fraction: f32,
+    square: f32,
+    lagged: f32,
+}
+
+/// Bytes of a [`SavedShare`].
+pub const SAVED_LEN: usize = 16;
+
+impl SavedShare {
+    /// Checks everything before anything is used: length, checksum, and
+    /// each value finite and in range (a share in (0, 1], a mean square
+    /// >= 0).
+    pub fn parse(bytes: &[u8]) -> Result<Self, SnapshotError> {
+        let length = SnapshotError::Length {
+            expected: SAVED_LEN,
+            found: bytes.len(),
+        };
+        let bytes: &[u8; SAVED_LEN] = bytes.try_into().map_err(|_| length)?;
+        let word = |k: usize| {
+            let mut w = [0u8; 4];
+            w.copy_from_slice(bytes.get(4 * k..4 * k + 4).unwrap_or(&[0; 4]));
+            w
+        };
+        if crc32(bytes.get(..12).unwrap_or(&[])) != u32::from_le_bytes(word(3)) {
+            return Err(SnapshotError::Checksum);
+        }
+        let [fraction, square, lagged] = [0, 1, 2].map(|k| f32::from_le_bytes(word(k)));
+        let ok = fraction > 0.0
+            && fraction <= 1.0
+            && (0.0..=MAX_SAVED_SQUARE).contains(&square)
+            && lagged.abs() <= MAX_SAVED_SQUARE;
+        if !ok {
+            return Err(SnapshotError::Invalid(Field::PulseShare));
+        }
+        Ok(SavedShare {
+            fraction,
+            square,
+            lagged,
+        })
+    }
+
+    /// The bytes [`parse`](Self::parse) reads.
+    pub fn to_bytes(&self) -> [u8; SAVED_LEN] {
+        let mut out = [0u8; SAVED_LEN];
+        let words = [self.fraction, self.square, self.lagged].map(f32::to_le_bytes);
+        for (chunk, w) in out.chunks_exact_mut(4).zip(words) {
+            chunk.copy_from_slice(&w);
+        }
+        let crc = crc32(out.get(..12).unwrap_or(&[])).to_le_bytes();
+        if let Some(tail) = out.get_mut(12..) {
+            tail.copy_from_slice(&crc);
+        }
+        out
+    }
+}
+
+impl Damping {
+    /// `least`: the least share ([`MountConfig::least_pulse_share`]
+    /// (crate::mount::config::MountConfig::least_pulse_share)).
+    pub const fn new(least: f32) -> Self {
+        Damping {
+            least,
+            fraction: 1.0,
+            square: 0.0,
+            lagged: 0.0,
+            previous: None,
+            scored: 0,
+            restored: None,
+        }
+    }
+
+    /// What to save with the model: the share and its statistics once
+    /// measured, else nothing earned.
+    pub fn saved(&self) -> SavedShare {
+        if self.scored < WINDOW_FRAMES || !(self.square > 0.0) {
+            return SavedShare {
+                fraction: 1.0,
+                square: 0.0,
+                lagged: 0.0,
+            };
+        }
+        SavedShare {
+            fraction: self.fraction,
+            square: self.square,
+            lagged: self.lagged,
+        }
+    }
+
+    /// After a power cycle, the model restored: start from a saved share
+    /// (`None`: none saved, earn it again), the statistics going on from the
+    /// saved ones. Used only on frames the restored model is trusted (full
+    /// pulses before); after a rise (an untrusted frame, a pulse beyond the
+    /// recent ones, correlated pulses) the share returns to it within a
+    /// minute once the pulses are anti-correlated again.
+    pub fn restore(&mut self, saved: Option<SavedShare>) {
+        self.reset();
+        let Some(s) = saved.filter(|s| s.square > 0.0) else {
+            return;
+        };
+        self.square = s.square;
+        self.lagged = s.lagged;
+        self.scored = WINDOW_FRAMES;
+        self.fraction = s.fraction;
+        self.restored = (s.fraction < 1.0).then_some(s.fraction);
+    }
+
+    /// Forget the statistics (the model was reset): full pulses.
+    pub fn reset(&mut self) {
+        *self = Self::new(self.least);
+    }
+
+    /// One frame: `pulse` the correction its RA pulse asked for (arcsec, 0
+    /// for a frame the guider sent none), `None` for a frame that is no
+    /// plain guide frame; `trusted`: the model's feed-forward is in full
+    /// effect. Returns the share for the pulses to come.
+    pub fn frame(&mut self, pulse: Option<f32>, trusted: bool) -> PulseShare {
+        let Some(u) = pulse.filter(|u| u.is_finite()) else {
+            self.previous = None;
+            return PulseShare::FULL;
+        };
+        self.scored = self.scored.saturating_add(1);
+        let w = self.scored.min(WINDOW_FRAMES) as f32;
+        self.square += (u * u - self.square) / w;
+        if let Some(p) = self.previous {
+            self.lagged += (u * p - self.lagged) / w;
+        }
+        self.previous = Some(u);
+        let bound = OUTLIER_RMS * libm::sqrtf(self.square);
+        let measured = self.scored >= WINDOW_FRAMES && self.square > 0.0;
+        if self.least >= 1.0 || !trusted || !measured || u.abs() > bound {
+            self.fraction = 1.0;
+        } else {
+            let correlation = clamp(self.lagged / self.square, -1.0, 1.0);
+            let mut f = self.fraction * (1.0 + RATE * correlation);
+            if let Some(share) = self.restored.filter(|&s| s < f && correlation < 0.0) {
+                f -= BACK_PER_FRAME * (f - share);
+            }
+            self.fraction = clamp(f, self.least, 1.0);
+        }
+        if self.fraction >= 1.0 || !self.fraction.is_finite() {
+            self.fraction = 1.0;
+            return PulseShare::FULL;
+        }
+        PulseShare {
+            fraction: self.fraction,
+            up_to_arcsec: bound,
+        }
+    }
+
+    /// The share now, 1 when none is earned.
+    pub fn fraction(&self) -> f32 {
+        self.fraction
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testing::Gaussian;
+
+    /// A loop of gain 0.7 carrying out the share it is given, on white
+    /// noise of 1 arcsec and an error that walks by `walk` arcsec per
+    /// frame: the mean share over frames 1000 to 3000.
+    fn mean_share(walk: f64, trusted: bool) -> f64 {
+        let mut d = Damping::new(0.2);
+        let mut noise = Gaussian::new(3);
+        let (mut error, mut sum) = (0.0f64, 0.0);
+        for k in 0..3_000 {
+            let pulse = 0.7 * (error + noise.next());
+            let share = d.frame(Some(pulse as f32), trusted);
+            error += walk * noise.next() - share.fraction as f64 * pulse;
+            if k >= 1_000 {
+                sum += share.fraction as f64;
+            }
+        }
+        sum / 2_000.0
+    }
+
+    #[test]
+    fn noise_alone_earns_a_small_share_and_an_error_keeps_full_pulses() {
+        assert_eq!(mean_share(0.0, false), 1.0);
+        let noise_only = mean_share(0.0, true);
+        assert!(noise_only < 0.35, "{noise_only}");
+        // An error walking by 1 arcsec a frame is no noise to ignore.
+        let walking = mean_share(1.0, true);
+        assert!(walking > 0.8, "{walking}");
+    }
+
+    /// Noise alone, anti-correlated pulses, until a share is earned.
+    fn earned(d: &mut Damping) {
+        let mut noise = Gaussian::new(5);
+        for _ in 0..1_000 {
+            let u = noise.next() as f32;
+            d.frame(Some(u), true);
+            d.frame(Some(-u), true);
+        }
+    }
+
+    #[test]
+    fn a_saved_share_comes_back_only_behind_a_trusted_model() {
+        let mut d = Damping::new(0.2);
+        earned(&mut d);
+        let saved = d.saved();
+        assert!(saved.fraction < 0.5, "{saved:?}");
+        let back = SavedShare::parse(&saved.to_bytes()).unwrap();
+        assert_eq!(back, saved);
+        // Not trusted: full pulses, and the share once trusted again.
+        let mut r = Damping::new(0.2);
+        r.restore(Some(back));
+        assert_eq!(r.frame(Some(0.1), false), PulseShare::FULL);
+        let mut share = 1.0;
+        for k in 0..60 {
+            let u = if k % 2 == 0 { 0.1 } else { -0.1 };
+            share = r.frame(Some(u), true).fraction;
+        }
+        assert!(share < 0.5, "{share}");
+        // Trusted from the start: the saved share at once.
+        let mut r = Damping::new(0.2);
+        r.restore(Some(back));
+        let share = r.frame(Some(0.1), true).fraction;
+        assert!((share - saved.fraction).abs() < 0.05, "{share}");
+        // Nothing measured, nothing saved: earned again.
+        let fresh = Damping::new(0.2).saved();
+        r.restore(Some(fresh));
+        assert_eq!(r.frame(Some(0.1), true), PulseShare::FULL);
+        r.restore(None);
+        assert_eq!(r.frame(Some(0.1), true), PulseShare::FULL);
+    }
+
+    #[test]
+    fn a_cut_or_garbled_saved_share_is_refused() {
+        let mut d = Damping::new(0.2);
+        earned(&mut d);
+        let bytes = d.saved().to_bytes();
+        assert_eq!(
+            SavedShare::parse(&bytes[..SAVED_LEN - 1]),
+            Err(SnapshotError::Length {
+                expected: SAVED_LEN,
+                found: SAVED_LEN - 1
+            })
+        );
+        for i in 0..SAVED_LEN {
+            let mut garbled = bytes;
+            garbled[i] ^= 0x10;
+            assert_eq!(SavedShare::parse(&garbled), Err(SnapshotError::Checksum));
+        }
+        // A share out of range with a matching checksum: a writer's bug.
+        for fraction in [0.0, 1.5, f32::NAN] {
+            let bad = SavedShare {
+                fraction,
+                ..d.saved()
+            };
+            assert_eq!(
+                SavedShare::parse(&bad.to_bytes()),
+                Err(SnapshotError::Invalid(Field::PulseShare))
+            );
+        }
+    }
+
+    #[test]
+    fn a_pulse_beyond_the_recent_ones_brings_full_pulses_at_once() {
+        let mut d = Damping::new(0.2);
+        let mut noise = Gaussian::new(4);
+        for _ in 0..1_000 {
+            // Anti-correlated pulses: a loop reacting to noise.
+            let u = noise.next() as f32;
+            d.frame(Some(u), true);
+            d.frame(Some(-u), true);
+        }
+        let share = d.frame(Some(0.1), true);
+        assert!(share.fraction < 0.5, "{share:?}");
+        assert!(share.up_to_arcsec > 0.0);
+        assert_eq!(d.frame(Some(10.0), true), PulseShare::FULL);
+        // A dither's frame and a non-finite pulse: full pulses.
+        d.frame(Some(0.1), true);
+        assert_eq!(d.frame(None, true), PulseShare::FULL);
+        assert_eq!(d.frame(Some(f32::NAN), true), PulseShare::FULL);
+        // Switched off.
+        let mut off = Damping::new(1.0);
+        for k in 0..500 {
+            let u = if k % 2 == 0 { 1.0 } else { -1.0 };
+            assert_eq!(off.frame(Some(u), true), PulseShare::FULL);
+        }
+    }
+}
