@@ -100,7 +100,11 @@ fn a_guider_slower_than_configured() {
             exposure_s,
             ..GuiderSettings::default()
         };
-        for r in st4_sim::table_with(&cases, &[1.0], guider) {
+        let setup = Setup {
+            guider,
+            ..Setup::default()
+        };
+        for r in st4_sim::table_with(&cases, &[1.0], setup) {
             let ratio = r.fw_mkgp / r.guider_only;
             println!(
                 "{exposure_s} s {}: guider only {:.3}, fw mkgp {:.3} ({ratio:.3})",
