@@ -132,8 +132,8 @@ impl SavedShare {
 }
 
 impl Damping {
-    /// `least`: the least share ([`MountConfig::least_pulse_share`](crate::mount::config::MountConfig::least_pulse_share)
-    /// (crate::mount::config::MountConfig::least_pulse_share)).
+    /// `least`: the least share
+    /// ([`MountConfig::least_pulse_share`](crate::mount::config::MountConfig::least_pulse_share)).
     pub const fn new(least: f32) -> Self {
         Damping {
             least,
