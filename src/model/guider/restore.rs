@@ -396,7 +396,11 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
                     .iter()
                     .flatten()
                     .all(|p| p.contrast >= STAGE_PHASE_CONTRAST);
-                if placed || full || search.wait_periods >= STAGE_PHASE_SEARCH_MAX_PERIODS {
+                // The last wait: the next would pass the most (half a step
+                // of slack, as the waits add up in floating point).
+                let last = search.wait_periods + 0.5 * STAGE_PHASE_SEARCH_STEP_PERIODS
+                    >= STAGE_PHASE_SEARCH_MAX_PERIODS;
+                if placed || full || last {
                     self.put_back_stages(saved, &h, &phases, level);
                 } else {
                     self.phase_search = Some(PhaseSearch {
