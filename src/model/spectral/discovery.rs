@@ -49,10 +49,12 @@ pub const RESOLUTION_BEATS: f64 = 1.5;
 /// harmonic, 4.5 % off the worm's fifth) before the 110 s fundamental, and
 /// the stage then misses it: see `docs/model.md`.
 pub const HARMONIC_BEATS: f64 = 1.5;
-/// A found stage that is not yet fully gated in moves to twice or half its
-/// period where that peak has this many times the power of its own, if the
-/// new period is below this many worm periods. Measured on C5, C6 and the
-/// PHD2 logs: see `docs/model.md`.
+/// A found stage moves up to twice its period where that line has at least
+/// 1 / this of its own power and would open a gate on its own (the stage's
+/// fundamental: a kernel of period 2P also represents P); a stage not yet
+/// fully gated in moves to twice or half its period where that peak has
+/// this many times its own power; either only to periods below this many
+/// worm periods. Measured on C5-C8 and the PHD2 logs: see `docs/model.md`.
 pub const MOVE_POWER_RATIO: f64 = 2.0;
 pub const MOVE_MAX_WORM_PERIODS: f64 = 0.9;
 /// Evidence gate thresholds on the smoothed amplitude ratio.
@@ -187,6 +189,54 @@ fn peak_near<S: Scalar>(
     )
 }
 
+/// Where a found stage's line stands against its octaves: a periodic
+/// kernel of period 2P also represents a line at P (its second harmonic),
+/// one of period P never a line at 2P.
+struct Octaves {
+    /// The stage's period and the power of its own peak (0: none).
+    own: f64,
+    own_power: f64,
+    /// The stage's gate is not fully open.
+    weak: bool,
+    worm_power: f64,
+    /// The periods a stage may move to.
+    range: (f64, f64),
+}
+
+impl Octaves {
+    /// The peak the stage moves to, if any. Up to twice its period where
+    /// that line is the stage's fundamental: a line of its own (the
+    /// weakest amplitude ratio that opens a gate) with at least
+    /// 1 / [`MOVE_POWER_RATIO`] of the stage's power, as C6's 155 s beside
+    /// its 77.5 s harmonic (C7's weak 155 s stays below); or, for a weak
+    /// stage, where the energy clearly is (C5, a PHD2 log's 45 s stage
+    /// on its way to 180 s). Down to half its period only for a weak stage
+    /// whose line is clearly weaker than that one.
+    fn choose<S: Scalar>(
+        &self,
+        spectrum: &Spectrum<'_, S>,
+        known: &[f64],
+        lines: &[f64],
+        span_s: f64,
+    ) -> Option<Peak> {
+        let movable = |p: f64| p >= self.range.0 && p <= self.range.1;
+        let octave = |p: f64| {
+            movable(p)
+                .then(|| peak_near(spectrum, p, known, lines, span_s))
+                .flatten()
+        };
+        let up = octave(2.0 * self.own).filter(|r| {
+            let fundamental = r.power >= self.own_power / MOVE_POWER_RATIO
+                && r.power >= GATE_OFF * GATE_OFF * self.worm_power;
+            fundamental || (self.weak && r.power > MOVE_POWER_RATIO * self.own_power)
+        });
+        up.or_else(|| {
+            octave(0.5 * self.own)
+                .filter(|r| self.weak && r.power > MOVE_POWER_RATIO * self.own_power)
+        })
+    }
+}
+
 /// What the search knows of one stage.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct StageSearch {
@@ -303,32 +353,19 @@ impl<const N: usize> Discovery<N> {
             let peak = if stage.found {
                 let own = trackers[s].period_s;
                 let mut peak = peak_near(spectrum, own, known, lines, span_s);
-                // Follow the energy: a stage whose gate is not yet fully
-                // open moves to its octave (twice or half its period) when
-                // that peak carries clearly more power than its own. (On C5
-                // the search can find 77.5 s, the weaker harmonic, before
-                // the 155 s fundamental stands out, and the guard then bars
-                // the fundamental for good; a stage already strong stays,
-                // as C7's dominant 77.5 s harmonic does.) Peaks near the
-                // worm's period are its own skirt or de-trend residue.
-                if stage.ratio < GATE_FULL {
-                    for relative in [2.0 * own, 0.5 * own] {
-                        if relative < band_lo
-                            || relative > MOVE_MAX_WORM_PERIODS * trackers[0].period_s
-                        {
-                            continue;
-                        }
-                        let Some(r) = peak_near(spectrum, relative, known, lines, span_s) else {
-                            continue;
-                        };
-                        if r.power > MOVE_POWER_RATIO * peak.map_or(0.0, |p| p.power) {
-                            peak = Some(r);
-                            trackers[s] = PeriodTracker {
-                                period_s: r.period_s,
-                                ..trackers[s]
-                            };
-                        }
-                    }
+                let octaves = Octaves {
+                    own,
+                    own_power: peak.map_or(0.0, |p| p.power),
+                    weak: stage.ratio < GATE_FULL,
+                    worm_power,
+                    range: (band_lo, MOVE_MAX_WORM_PERIODS * trackers[0].period_s),
+                };
+                if let Some(r) = octaves.choose(spectrum, known, lines, span_s) {
+                    peak = Some(r);
+                    trackers[s] = PeriodTracker {
+                        period_s: r.period_s,
+                        ..trackers[s]
+                    };
                 }
                 peak
             } else {
@@ -583,6 +620,57 @@ mod tests {
         fresh.scan(&spectrum, &mut unsettled, Some(worm), 4000.0);
         fresh.step(&mut unsettled, &mut gates);
         assert_eq!(gates[1], 0.0);
+    }
+
+    /// The second stage's period after a scan that finds it near a seed
+    /// and one more that follows it, on 4,000 s of `g` with the worm
+    /// tracked at 432 s.
+    fn followed_stage(g: impl Fn(f64) -> f64, seed: f64) -> f64 {
+        use crate::model::gp::grid::Grid;
+        use crate::model::spectral::spectrum::Spectrum;
+        let mut grid: Grid<f64> = Grid::new();
+        let mut t = 0.0;
+        while t < 4000.0 {
+            grid.push(t, g(t), 1.0);
+            t += 2.0;
+        }
+        let mut buf = [0.0; crate::model::spectral::fft::FFT_LEN];
+        let spectrum = Spectrum::compute(&grid, &mut buf).unwrap();
+        let worm = spectrum.strongest(0, NYQUIST_BIN, |_| true);
+        let mut trackers = [PeriodTracker::new(432.0); 2];
+        trackers[0].disagreement = 0.0;
+        let mut d: Discovery<2> = Discovery::new([None, Some(seed)]);
+        let span = grid.len() as f64 * CELL_S;
+        d.scan(&spectrum, &mut trackers, worm, span);
+        assert!((trackers[1].period_s - seed).abs() < 1.5, "{trackers:?}");
+        d.scan(&spectrum, &mut trackers, worm, span);
+        trackers[1].period_s
+    }
+
+    #[test]
+    fn a_stage_moves_up_to_its_fundamental() {
+        let pi2 = 2.0 * core::f64::consts::PI;
+        // (worm's second harmonic, stage, stage's second harmonic): C6's
+        // 155 s line carries more than half its harmonic's power, C7's a
+        // quarter.
+        for (h2, fundamental, harmonic, want) in [(6.0, 4.5, 3.6, 155.0), (3.0, 2.4, 4.8, 77.5)] {
+            let g = |t: f64| {
+                9.0 * libm::sin(pi2 * t / 432.0)
+                    + h2 * libm::sin(pi2 * t / 216.0)
+                    + fundamental * libm::sin(pi2 * t / 155.0)
+                    + harmonic * libm::sin(pi2 * t / 77.5)
+            };
+            let got = followed_stage(g, 77.5);
+            assert!((got - want).abs() < 1.5, "{fundamental}: {got}");
+        }
+        // A stage found at its fundamental stays there.
+        let g = |t: f64| {
+            9.0 * libm::sin(pi2 * t / 432.0)
+                + 4.5 * libm::sin(pi2 * t / 155.0)
+                + 3.6 * libm::sin(pi2 * t / 77.5)
+        };
+        let got = followed_stage(g, 155.0);
+        assert!((got - 155.0).abs() < 1.5, "{got}");
     }
 
     #[test]
