@@ -46,17 +46,15 @@ const PHASE_SEARCH_PERIODS: f64 = 0.5;
 /// against 0.35 and 0.5 on `guide-sim nights`; docs/model.md).
 const WORM_PHASE_SEARCH_PERIODS: f64 = 0.25;
 /// The same with the other stages fitted apart: each stage's phase and a
-/// level are all that is searched (measured on `guide-sim nights` against
-/// 0.05, which placed C8's 110 s stage wrongly, and 0.15 and 0.25, which
-/// leave the stages out longer; docs/model.md).
-const STAGE_PHASE_SEARCH_PERIODS: f64 = 0.1;
-/// Until the new data picks each stage's phase this clearly (its contrast
-/// to the next best phase, in the residuals' variance: 4 is twice the
-/// log-likelihood ratio of e²), the search waits for more, in steps of
-/// [`STAGE_PHASE_SEARCH_STEP_PERIODS`] worm periods up to
-/// [`STAGE_PHASE_SEARCH_MAX_PERIODS`]. Noise-free data picks every stage at
-/// the first try (measured on `guide-sim nights`, docs/model.md).
-const STAGE_PHASE_CONTRAST: f64 = 4.0;
+/// level are all that is searched, first this early, then until the data
+/// picks the phase clearly (measured on `guide-sim nights`; docs/model.md).
+const STAGE_PHASE_SEARCH_PERIODS: f64 = 0.05;
+/// Until the new data picks each stage's phase clearly (an F-test at 90 %
+/// against every phase an eighth of a period or more away), the search
+/// waits for more, in steps of [`STAGE_PHASE_SEARCH_STEP_PERIODS`] worm
+/// periods up to [`STAGE_PHASE_SEARCH_MAX_PERIODS`]. Noise-free data picks
+/// every stage at the first try (measured on `guide-sim nights`,
+/// docs/model.md).
 const STAGE_PHASE_SEARCH_STEP_PERIODS: f64 = 0.05;
 const STAGE_PHASE_SEARCH_MAX_PERIODS: f64 = 0.5;
 /// Phase error per second of gap between the saved data and the first new
@@ -392,10 +390,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         match search.stages {
             Some((saved, h)) => {
                 let (phases, level) = self.find_stage_phases(search.new_from, &h);
-                let placed = phases
-                    .iter()
-                    .flatten()
-                    .all(|p| p.contrast >= STAGE_PHASE_CONTRAST);
+                let placed = phases.iter().flatten().all(|p| p.is_clear());
                 // The last wait: the next would pass the most (half a step
                 // of slack, as the waits add up in floating point).
                 let last = search.wait_periods + 0.5 * STAGE_PHASE_SEARCH_STEP_PERIODS
