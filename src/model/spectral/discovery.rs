@@ -505,17 +505,22 @@ mod tests {
         }
     }
 
-    /// The second stage's period after one scan of `g` sampled over
-    /// `span` s, with the worm tracked at 432 s; None if none was found.
-    fn second_stage(g: impl Fn(f64) -> f64, span: f64) -> Option<f64> {
-        use crate::model::gp::grid::Grid;
-        use crate::model::spectral::spectrum::Spectrum;
-        let mut grid: Grid<f64> = Grid::new();
+    /// `g` sampled every 2 s over `span` s.
+    fn sampled(g: impl Fn(f64) -> f64, span: f64) -> crate::model::gp::grid::Grid<f64> {
+        let mut grid = crate::model::gp::grid::Grid::new();
         let mut t = 0.0;
         while t < span {
             grid.push(t, g(t), 1.0);
             t += 2.0;
         }
+        grid
+    }
+
+    /// The second stage's period after one scan of `g` sampled over
+    /// `span` s, with the worm tracked at 432 s; None if none was found.
+    fn second_stage(g: impl Fn(f64) -> f64, span: f64) -> Option<f64> {
+        use crate::model::spectral::spectrum::Spectrum;
+        let grid = sampled(g, span);
         let mut buf = [0.0; crate::model::spectral::fft::FFT_LEN];
         let spectrum = Spectrum::compute(&grid, &mut buf)?;
         let worm = spectrum.strongest(0, NYQUIST_BIN, |_| true)?;
@@ -571,7 +576,6 @@ mod tests {
 
     #[test]
     fn scan_finds_the_second_stage_of_a_known_spectrum() {
-        use crate::model::gp::grid::Grid;
         use crate::model::spectral::spectrum::Spectrum;
         // C8's two stages, each with its second harmonic.
         let pi2 = 2.0 * core::f64::consts::PI;
@@ -581,12 +585,7 @@ mod tests {
                 + 4.5 * libm::sin(pi2 * t / 110.0)
                 + 3.6 * libm::sin(pi2 * t / 55.0)
         };
-        let mut grid: Grid<f64> = Grid::new();
-        let mut t = 0.0;
-        while t < 4000.0 {
-            grid.push(t, g(t), 1.0);
-            t += 2.0;
-        }
+        let grid = sampled(g, 4000.0);
         let mut buf = [0.0; crate::model::spectral::fft::FFT_LEN];
         let spectrum = Spectrum::compute(&grid, &mut buf).unwrap();
         let worm = spectrum.strongest(0, NYQUIST_BIN, |_| true).unwrap();
@@ -626,14 +625,8 @@ mod tests {
     /// and one more that follows it, on 4,000 s of `g` with the worm
     /// tracked at 432 s.
     fn followed_stage(g: impl Fn(f64) -> f64, seed: f64) -> f64 {
-        use crate::model::gp::grid::Grid;
         use crate::model::spectral::spectrum::Spectrum;
-        let mut grid: Grid<f64> = Grid::new();
-        let mut t = 0.0;
-        while t < 4000.0 {
-            grid.push(t, g(t), 1.0);
-            t += 2.0;
-        }
+        let grid = sampled(g, 4000.0);
         let mut buf = [0.0; crate::model::spectral::fft::FFT_LEN];
         let spectrum = Spectrum::compute(&grid, &mut buf).unwrap();
         let worm = spectrum.strongest(0, NYQUIST_BIN, |_| true);
