@@ -16,12 +16,19 @@
 //! down to the configured least share. No guider setting enters: the
 //! correlation does not depend on the pulses' scale.
 //!
-//! Full pulses at once: while the model is not trusted in full, for a
+//! Full pulses at once: while the model is not trusted in full, and for a
 //! frame that is not a plain guide frame (a dither and its settling, the
-//! guider silent), and for a pulse far beyond the recent ones (the error is
-//! not explained: a bump, a calibration step). The fast part carries out
-//! in full any pulse longer than [`PulseShare::up_to_arcsec`] and makes up
-//! what it held back (`super::share`).
+//! guider silent or its pulses queued). A pulse far beyond the recent ones
+//! is carried out in full by the fast part, which makes up what it held
+//! back of any pulse longer than [`PulseShare::up_to_arcsec`]
+//! (`super::share`). Full pulses come back only after two such pulses in a
+//! row the same way (an error no model explains: a calibration's steps, a
+//! bump). One alone leaves the share: put back to full by a single noisy
+//! measurement, a guider that overcorrects (an effective gain of 2) and
+//! that the share had held would swing again, and that swing, at about
+//! four frames a period, makes neighbouring pulses correlated: nothing here
+//! would damp it again (docs/results.md, "Where the guider alone is
+//! unstable").
 //!
 //! Across a power cycle: the share and the statistics behind it are saved
 //! with the model ([`SavedShare`], in the learner's record), so a night
@@ -62,6 +69,8 @@ pub struct Damping {
     lagged: f32,
     /// The previous frame's pulse, if that frame was a guide frame.
     previous: Option<f32>,
+    /// The last pulse beyond its bound, while no pulse within it followed.
+    last_beyond: Option<f32>,
     scored: u32,
     /// A share restored with the model, returned to while the pulses are
     /// anti-correlated.
@@ -141,6 +150,7 @@ impl Damping {
             square: 0.0,
             lagged: 0.0,
             previous: None,
+            last_beyond: None,
             scored: 0,
             restored: None,
         }
@@ -166,8 +176,8 @@ impl Damping {
     /// After a power cycle, the model restored: start from a saved share
     /// (`None`: none saved, earn it again), the statistics going on from the
     /// saved ones. Used only on frames the restored model is trusted (full
-    /// pulses before); after a rise (an untrusted frame, a pulse beyond the
-    /// recent ones, correlated pulses) the share returns to it within a
+    /// pulses before); after a rise (an untrusted frame, correlated
+    /// pulses) the share returns to it within a
     /// minute once the pulses are anti-correlated again.
     pub fn restore(&mut self, saved: Option<SavedShare>) {
         self.reset();
@@ -193,20 +203,33 @@ impl Damping {
     pub fn frame(&mut self, pulse: Option<f32>, trusted: bool) -> PulseShare {
         let Some(u) = pulse.filter(|u| u.is_finite()) else {
             self.previous = None;
+            self.last_beyond = None;
             return PulseShare::FULL;
         };
         self.scored = self.scored.saturating_add(1);
         let w = self.scored.min(WINDOW_FRAMES) as f32;
         self.square += (u * u - self.square) / w;
-        if let Some(p) = self.previous {
+        let previous = self.previous.replace(u);
+        if let Some(p) = previous {
             self.lagged += (u * p - self.lagged) / w;
         }
-        self.previous = Some(u);
         let bound = OUTLIER_RMS * libm::sqrtf(self.square);
         let measured = self.scored >= WINDOW_FRAMES && self.square > 0.0;
-        if self.least >= 1.0 || !trusted || !measured || u.abs() > bound {
+        // Two pulses in a row beyond the bound (frames without a pulse
+        // between them), the same way: an error the loop follows (a
+        // calibration's steps, a bump). One alone, or one answered the
+        // other way (a guider that overcorrects), leaves the share as it
+        // is: the fast part carries such a pulse out in full.
+        let beyond = u.abs() > bound;
+        let step = beyond && self.last_beyond.is_some_and(|b| b * u > 0.0);
+        if beyond {
+            self.last_beyond = Some(u);
+        } else if u != 0.0 {
+            self.last_beyond = None;
+        }
+        if self.least >= 1.0 || !trusted || !measured || step {
             self.fraction = 1.0;
-        } else {
+        } else if !beyond {
             let correlation = clamp(self.lagged / self.square, -1.0, 1.0);
             let mut f = self.fraction * (1.0 + RATE * correlation);
             if let Some(share) = self.restored.filter(|&s| s < f && correlation < 0.0) {
@@ -335,7 +358,7 @@ mod tests {
     }
 
     #[test]
-    fn a_pulse_beyond_the_recent_ones_brings_full_pulses_at_once() {
+    fn pulses_beyond_the_recent_ones_bring_full_pulses_only_twice_the_same_way() {
         let mut d = Damping::new(0.2);
         let mut noise = Gaussian::new(4);
         for _ in 0..1_000 {
@@ -347,7 +370,18 @@ mod tests {
         let share = d.frame(Some(0.1), true);
         assert!(share.fraction < 0.5, "{share:?}");
         assert!(share.up_to_arcsec > 0.0);
-        assert_eq!(d.frame(Some(10.0), true), PulseShare::FULL);
+        // One alone, or answered the other way (an overcorrection): the
+        // fast part carries it out in full, the share stays.
+        let beyond = d.frame(Some(10.0), true);
+        assert!(10.0 > beyond.up_to_arcsec, "{beyond:?}");
+        assert_eq!(beyond.fraction, share.fraction);
+        let answered = d.frame(Some(-12.0), true);
+        assert!(12.0 > answered.up_to_arcsec, "{answered:?}");
+        assert_eq!(answered.fraction, share.fraction);
+        // Twice the same way, frames without a pulse between: an error to
+        // follow, full pulses.
+        d.frame(Some(0.0), true);
+        assert_eq!(d.frame(Some(-14.0), true), PulseShare::FULL);
         // A dither's frame and a non-finite pulse: full pulses.
         d.frame(Some(0.1), true);
         assert_eq!(d.frame(None, true), PulseShare::FULL);
