@@ -311,6 +311,7 @@ fn guiding_counter(c: &GuidingCounters, index: usize) -> Option<(&'static str, u
         13 => ("dec_clamped", c.dec_clamped),
         14 => ("time_backwards", c.time_backwards),
         15 => ("stray_ends", c.stray_ends),
+        16 => ("backlogs", c.backlogs),
         _ => return None,
     })
 }

@@ -130,9 +130,10 @@ pub fn frame(learner: &Learner<STAGES>, msg: &FrameRecord, ff: &FeedForward) {
         g.frames_dropped
     );
     defmt::info!(
-        "guiding: dithers {}, silences {}, stray ends {}, time backwards {}, clamped RA {} Dec {}",
+        "guiding: dithers {}, silences {}, backlogs {}, stray ends {}, time backwards {}, clamped RA {} Dec {}",
         g.dithers,
         g.silences,
+        g.backlogs,
         g.stray_ends,
         g.time_backwards,
         g.ra_clamped,

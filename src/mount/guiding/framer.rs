@@ -9,6 +9,13 @@
 //! runaway measured at 4.8 x the guider alone). So the cadence the frames
 //! are filled at is the guider's own, as its pulses show it, whenever that
 //! is clearly slower than the configured one.
+//!
+//! A guider whose pulses no longer fit in its cycle (each RA pulse starts as
+//! the one before it ends) has lost its loop: its pulses queue, and each
+//! one answers an exposure taken long before. Such a frame tells nothing
+//! about the gear, so learning freezes ([`Backlog`]) until the pulses fit
+//! again. Meanwhile the firmware adds nothing to the guider's loop: no
+//! feed-forward, and its pulses carried out in full (`super`).
 
 use heapless::Deque;
 
@@ -62,11 +69,58 @@ impl PulseCadence {
     }
 }
 
+/// Pulses in a row that start as the one before ends before learning
+/// freezes, and that fit in their cycle before it resumes: a bump's or a
+/// dither's few long pulses never reach it.
+pub(super) const BACKLOG_PULSES: u8 = 8;
+
+/// Whether the guider's RA pulses run back to back: a pulse that starts
+/// within a sixteenth of its cycle (start to start) of the previous one's
+/// end leaves no time for an exposure between them.
+#[derive(Clone, Copy, Debug, Default)]
+struct Backlog {
+    last_start_us: Option<u64>,
+    last_end_us: Option<u64>,
+    /// Pulses in a row on the other side of the present state.
+    run: u8,
+    on: bool,
+}
+
+impl Backlog {
+    /// An RA pulse started at `at_us`: true when this begins a backlog.
+    fn pulse_started(&mut self, at_us: u64) -> bool {
+        let back_to_back = match (self.last_start_us, self.last_end_us) {
+            (Some(start), Some(end)) if end >= start => {
+                let gap = at_us.saturating_sub(end);
+                gap.saturating_mul(16) < at_us.saturating_sub(start)
+            }
+            _ => false,
+        };
+        self.last_start_us = Some(at_us);
+        self.run = if back_to_back != self.on {
+            self.run.saturating_add(1)
+        } else {
+            0
+        };
+        if self.run >= BACKLOG_PULSES {
+            self.on = !self.on;
+            self.run = 0;
+            return self.on;
+        }
+        false
+    }
+
+    fn pulse_ended(&mut self, at_us: u64) {
+        self.last_end_us = Some(at_us);
+    }
+}
+
 pub(super) struct Framer {
     aggressiveness: f32,
     /// The configured guide cadence (`guide_cadence_s`).
     cadence_us: u64,
     pulse_cadence: PulseCadence,
+    backlog: Backlog,
     dither_threshold_us: u64,
     silence_frames: u32,
     guide_arcsec_per_s: f32,
@@ -95,6 +149,7 @@ impl Framer {
             aggressiveness,
             cadence_us,
             pulse_cadence: PulseCadence::default(),
+            backlog: Backlog::default(),
             dither_threshold_us,
             silence_frames,
             guide_arcsec_per_s,
@@ -111,6 +166,11 @@ impl Framer {
     /// When the guider was last heard (a pulse start or end).
     pub fn last_activity_us(&self) -> Option<u64> {
         self.last_activity_us
+    }
+
+    /// The guider's RA pulses run back to back ([`Backlog`]).
+    pub fn backlogged(&self) -> bool {
+        self.backlog.on
     }
 
     /// Learning is frozen: the guider has been silent for too long.
@@ -140,8 +200,11 @@ impl Framer {
     }
 
     /// An RA pulse started: it opens a frame at `mark`.
-    pub fn open(&mut self, mark: Mark, direction: Direction) {
+    pub fn open(&mut self, mark: Mark, direction: Direction, counters: &mut GuidingCounters) {
         self.pulse_cadence.pulse_started(mark.at_us);
+        if self.backlog.pulse_started(mark.at_us) {
+            counters.backlogs = counters.backlogs.saturating_add(1);
+        }
         self.fill_mark = None;
         self.open = Some(OpenFrame { mark, direction });
     }
@@ -158,6 +221,7 @@ impl Framer {
         let Some(open) = self.open.take() else {
             return;
         };
+        self.backlog.pulse_ended(at_us);
         let duration_us = at_us.saturating_sub(start_us);
         let correction =
             open.direction.sign() * duration_us as f32 * 1e-6 * self.guide_arcsec_per_s;
@@ -167,6 +231,8 @@ impl Framer {
             FrameKind::Dither {
                 amount_arcsec: correction,
             }
+        } else if self.backlog.on {
+            FrameKind::Unmeasured
         } else {
             FrameKind::Measured
         };

@@ -136,8 +136,10 @@ pub struct GuidingCounters {
     pub filled_frames: u32,
     pub unmeasured_frames: u32,
     pub dithers: u32,
-    /// Times learning froze because the guider fell silent.
+    /// Times learning froze because the guider fell silent, and because
+    /// its RA pulses ran back to back (`framer`).
     pub silences: u32,
+    pub backlogs: u32,
     /// Times the feed-forward was faded out completely after a silence.
     pub feed_forward_faded: u32,
     /// Feed-forwards refused (non-finite) or limited to the guide rate.
@@ -273,8 +275,17 @@ impl Guiding {
     /// The feed-forward rate in effect at the last `rates` call, after the
     /// fade, arcsec/s.
     pub fn feed_forward_now(&self) -> f32 {
+        self.feed_forward_at(self.applied.last_us())
+    }
+
+    /// The feed-forward rate at `now_us`, arcsec/s: none while the
+    /// guider's pulses queue (it has lost its loop: add nothing to it).
+    fn feed_forward_at(&self, now_us: u64) -> f32 {
+        if self.frames.backlogged() {
+            return 0.0;
+        }
         self.feed_forward
-            .rate(self.applied.last_us(), self.frames.last_activity_us())
+            .rate(now_us, self.frames.last_activity_us())
     }
 
     /// The start of the pulse running on `axis`, µs.
@@ -320,7 +331,8 @@ impl Guiding {
                 self.heard(at_us);
                 self.ra_pulse = Some((direction, at_us));
                 self.ra_share = self.share_for(direction, at_us);
-                self.frames.open(self.applied.mark_at(at_us), direction);
+                let mark = self.applied.mark_at(at_us);
+                self.frames.open(mark, direction, &mut self.counters);
             }
             St4Event::PulseStart {
                 axis: Axis::Dec,
@@ -358,7 +370,7 @@ impl Guiding {
     /// The share of an RA pulse starting at `at_us`: damped only while the
     /// learner's feed-forward is in full effect and the port adds no motion.
     fn share_for(&self, direction: Direction, at_us: u64) -> Option<SharedPulse> {
-        if self.motion != Motion::TRACKING {
+        if self.motion != Motion::TRACKING || self.frames.backlogged() {
             return None;
         }
         let share = self
@@ -437,7 +449,7 @@ impl Guiding {
             heard,
             &mut self.counters,
         );
-        let ff_sps = self.feed_forward.rate(now_us, heard) as f64 / self.applied.arcsec_per_step();
+        let ff_sps = self.feed_forward_at(now_us) as f64 / self.applied.arcsec_per_step();
 
         let sidereal_sps = self.applied.sidereal_sps();
         if self.ra_finishing.is_some_and(|s| !s.running(now_us)) {

@@ -241,3 +241,53 @@ fn frames_are_filled_at_the_guiders_own_cadence() {
         .collect();
     assert_eq!(fills_with_pulses_at(&skipping), 9);
 }
+
+#[test]
+fn pulses_back_to_back_freeze_learning_and_the_feed_forward() {
+    let m = mount();
+    let mut g = Guiding::new(&m);
+    let mut pos = 0.0;
+    track(&mut g, 0, 1_000_000, &mut pos);
+    g.set_feed_forward(FeedForward {
+        rate_arcsec_per_s: 0.5,
+        from_gear_s: 0.0,
+        until_gear_s: 1e9,
+        pulse_share: crate::mount::frame::PulseShare::FULL,
+    });
+    // A pulse of `on_us` every 2 s, `n` times from `t`: the kinds of the
+    // frames they made, and the feed-forward at the end.
+    let mut pulses = |g: &mut Guiding, t: &mut u64, on_us: u64, n: u32| {
+        let mut kinds = std::vec::Vec::new();
+        for _ in 0..n {
+            g.on_event(start(Direction::Plus, *t));
+            track(g, *t, *t + on_us, &mut pos);
+            g.on_event(end(*t + on_us));
+            track(g, *t + on_us, *t + 2_000_000, &mut pos);
+            *t += 2_000_000;
+            while let Some(f) = g.take_frame() {
+                kinds.push(f.kind);
+            }
+        }
+        (kinds, g.feed_forward_now())
+    };
+    let mut t = 1_000_000;
+    let n = framer::BACKLOG_PULSES as u32;
+    // Pulses that fit in their cycle: measured, the feed-forward in full.
+    let (kinds, ff) = pulses(&mut g, &mut t, 500_000, 2 * n);
+    assert!(kinds.iter().all(|k| *k == FrameKind::Measured), "{kinds:?}");
+    assert_eq!(ff, 0.5);
+    // A bump's few long pulses do not freeze anything.
+    let (kinds, _) = pulses(&mut g, &mut t, 1_990_000, n - 1);
+    assert!(kinds.iter().all(|k| *k == FrameKind::Measured), "{kinds:?}");
+    assert_eq!(g.counters().backlogs, 0);
+    // Sustained, they do: unmeasured frames, no feed-forward.
+    let (kinds, ff) = pulses(&mut g, &mut t, 1_990_000, n);
+    assert_eq!(g.counters().backlogs, 1);
+    assert_eq!(kinds.last(), Some(&FrameKind::Unmeasured));
+    assert_eq!(ff, 0.0);
+    // Pulses that fit again: learning and the feed-forward resume.
+    let (kinds, ff) = pulses(&mut g, &mut t, 500_000, n + 1);
+    assert_eq!(kinds.last(), Some(&FrameKind::Measured));
+    assert_eq!(ff, 0.5);
+    assert_eq!(g.counters().backlogs, 1);
+}
