@@ -150,7 +150,7 @@ fn the_virtual_mount_answers_lx200_on_its_pty() {
         "{l}"
     );
     assert_eq!(
-        ask(&mut pty, ":~Cg16#", 1),
+        ask(&mut pty, ":~Cg17#", 1),
         "port_pulses=2 manual_moves=0 port_refused=0 st4_refused=0#"
     );
 

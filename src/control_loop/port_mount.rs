@@ -340,7 +340,7 @@ fn fault_counter(lost_edges: u32, f: &Faults, index: usize) -> Option<(&'static 
 }
 
 /// Guiding's own counters, then the port motion's (ownership refusals).
-const GUIDING_COUNTERS: usize = 16;
+const GUIDING_COUNTERS: usize = 17;
 
 impl MountPort for PortMount<'_> {
     fn position(&mut self) -> Equatorial {
