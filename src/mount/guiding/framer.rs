@@ -79,7 +79,6 @@ pub(super) const BACKLOG_PULSES: u8 = 8;
 /// end leaves no time for an exposure between them.
 #[derive(Clone, Copy, Debug, Default)]
 struct Backlog {
-    last_start_us: Option<u64>,
     last_end_us: Option<u64>,
     /// Pulses in a row on the other side of the present state.
     run: u8,
@@ -87,16 +86,16 @@ struct Backlog {
 }
 
 impl Backlog {
-    /// An RA pulse started at `at_us`: true when this begins a backlog.
-    fn pulse_started(&mut self, at_us: u64) -> bool {
-        let back_to_back = match (self.last_start_us, self.last_end_us) {
+    /// An RA pulse started at `at_us`, the one before it at
+    /// `previous_start_us`: true when this begins a backlog.
+    fn pulse_started(&mut self, at_us: u64, previous_start_us: Option<u64>) -> bool {
+        let back_to_back = match (previous_start_us, self.last_end_us) {
             (Some(start), Some(end)) if end >= start => {
                 let gap = at_us.saturating_sub(end);
                 gap.saturating_mul(16) < at_us.saturating_sub(start)
             }
             _ => false,
         };
-        self.last_start_us = Some(at_us);
         self.run = if back_to_back != self.on {
             self.run.saturating_add(1)
         } else {
@@ -201,8 +200,9 @@ impl Framer {
 
     /// An RA pulse started: it opens a frame at `mark`.
     pub fn open(&mut self, mark: Mark, direction: Direction, counters: &mut GuidingCounters) {
+        let previous_start_us = self.pulse_cadence.last_start_us;
         self.pulse_cadence.pulse_started(mark.at_us);
-        if self.backlog.pulse_started(mark.at_us) {
+        if self.backlog.pulse_started(mark.at_us, previous_start_us) {
             counters.backlogs = counters.backlogs.saturating_add(1);
         }
         self.fill_mark = None;
