@@ -520,10 +520,13 @@ fn a_more_aggressive_guider_is_damped_to_the_goal() {
 /// Issue 10, section 4: a guider unstable on its own (aggressiveness 1.0
 /// with a calibration of 0.5: it corrects twice what it measures). At 2 s
 /// exposures the damping holds the loop behind the trusted model (C5-C8 at
-/// 1 px: 0.95-1.22 arcsec measured, the guider alone 505-1,202). At 0.5 s
-/// exposures the guider's pulses queue within seconds and it loses the
-/// star on its own; the firmware then adds nothing (no feed-forward, full
-/// pulses, nothing learned): exactly the guider alone.
+/// 1 px: 0.82-0.89 arcsec measured, the guider alone 505-1,202). At 8 s
+/// the guider alone holds the star, and the firmware does better once the
+/// swing has lowered its pulse weight (C5-C8 at 1 px: 0.44-0.61 x the
+/// guider alone measured). At 0.5 s exposures the guider's pulses queue
+/// within seconds and it loses the star on its own; the firmware then adds
+/// nothing (no feed-forward, full pulses, nothing learned): exactly the
+/// guider alone.
 #[test]
 fn an_unstable_guider_is_held_or_left_to_itself() {
     let cases: Vec<Case> = ["C5", "C6", "C7", "C8"].into_iter().map(case).collect();
@@ -539,8 +542,23 @@ fn an_unstable_guider_is_held_or_left_to_itself() {
     let mut failures = Vec::new();
     for r in st4_sim::table_with(&cases, &[1.0], held) {
         println!("2 s {}: {r:?}", r.case);
-        if r.fw_mkgp > 1.3 || r.fw_mkgp > r.guider_only {
+        if r.fw_mkgp > 1.0 || r.fw_mkgp > r.guider_only {
             failures.push(format!("2 s: {r:?}"));
+        }
+    }
+    let slow = Setup {
+        guider: GuiderSettings {
+            exposure_s: 8.0,
+            min_move: 0.5,
+            ..unstable
+        },
+        ..Setup::default()
+    };
+    for r in st4_sim::table_with(&cases, &[1.0], slow) {
+        let ratio = r.fw_mkgp / r.guider_only;
+        println!("8 s {}: {r:?} {ratio:.3}", r.case);
+        if ratio > 0.7 {
+            failures.push(format!("8 s: {r:?}"));
         }
     }
     let queued = Setup {

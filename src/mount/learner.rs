@@ -18,6 +18,7 @@ use crate::model::snapshot::{
 use crate::mount::config::Mount;
 use crate::mount::frame::{FeedForward, Frame, FrameKind};
 use crate::mount::guiding::damping::{Damping, SavedShare, SAVED_LEN};
+use crate::mount::guiding::pulse_weight::PulseWeight;
 use crate::persist::MODEL_RECORD_MAX;
 
 /// Periodic stages of the firmware's model (the worm and two more), and of
@@ -73,6 +74,7 @@ pub struct Learner<const N: usize> {
     last_gear_s: Option<f64>,
     settling: u8,
     damping: Damping,
+    pulse_weight: PulseWeight,
     counters: LearnerCounters,
 }
 
@@ -108,8 +110,9 @@ impl<const N: usize> Learner<N> {
         uninit_field!(slot, last_gear_s).write(None);
         uninit_field!(slot, settling).write(0);
         uninit_field!(slot, damping).write(Damping::new(mount.config().least_pulse_share));
+        uninit_field!(slot, pulse_weight).write(PulseWeight::FULL);
         uninit_field!(slot, counters).write(LearnerCounters::default());
-        // SAFETY: all 7 fields are written.
+        // SAFETY: all 8 fields are written.
         unsafe { slot.assume_init_mut() }
     }
 
@@ -137,11 +140,17 @@ impl<const N: usize> Learner<N> {
         self.last_gear_s = None;
         self.settling = 0;
         self.damping.reset();
+        self.pulse_weight = PulseWeight::FULL;
     }
 
     /// The share of the RA guide pulses carried out now (1: in full).
     pub fn pulse_share(&self) -> f32 {
         self.damping.fraction()
+    }
+
+    /// The part of a guide pulse the model learns as gear error (1: all).
+    pub fn pulse_weight(&self) -> f32 {
+        self.pulse_weight.weight()
     }
 
     /// Write the learned model and the pulse share into `out` (at most
@@ -250,7 +259,10 @@ impl<const N: usize> Learner<N> {
             self.settling -= 1;
         }
         let observation = match frame.kind {
-            FrameKind::Measured if !settling => Some(frame.gear_error_arcsec as f64),
+            FrameKind::Measured if !settling => Some(
+                self.pulse_weight
+                    .observation(frame.applied_arcsec as f64, frame.gear_error_arcsec as f64),
+            ),
             _ => None,
         };
         let step = next + 0.5 * d;
@@ -272,11 +284,15 @@ impl<const N: usize> Learner<N> {
             _ => None,
         };
         let trusted = self.guider.blend_weight() >= TRUSTED_BLEND;
+        let pulse_share = self.damping.frame(pulse, trusted);
+        if pulse.is_some() {
+            self.pulse_weight.frame(self.damping.swing());
+        }
         FeedForward {
             rate_arcsec_per_s: rate,
             from_gear_s: t,
             until_gear_s: t + 3.0 * next.max(cadence),
-            pulse_share: self.damping.frame(pulse, trusted),
+            pulse_share: self.pulse_weight.share(pulse_share),
         }
     }
 }

@@ -28,7 +28,8 @@
 //! that the share had held would swing again, and that swing, at about
 //! four frames a period, makes neighbouring pulses correlated: nothing here
 //! would damp it again (docs/results.md, "Where the guider alone is
-//! unstable").
+//! unstable"). Such a swing makes pulses two frames apart anti-correlated;
+//! [`Damping::swing`] measures that for `super::pulse_weight`.
 //!
 //! Across a power cycle: the share and the statistics behind it are saved
 //! with the model ([`SavedShare`], in the learner's record), so a night
@@ -63,12 +64,15 @@ pub struct Damping {
     /// The configured least share; 1 switches damping off.
     least: f32,
     fraction: f32,
-    /// Running means of the pulse squared and of the product of
-    /// neighbouring pulses, arcsec^2.
+    /// Running means of the pulse squared and of the products of pulses
+    /// one and two frames apart, arcsec^2.
     square: f32,
     lagged: f32,
-    /// The previous frame's pulse, if that frame was a guide frame.
+    lagged_two: f32,
+    /// The pulses of the previous two frames, while those were guide
+    /// frames.
     previous: Option<f32>,
+    before_previous: Option<f32>,
     /// The last pulse beyond its bound, while no pulse within it followed.
     last_beyond: Option<f32>,
     scored: u32,
@@ -149,7 +153,9 @@ impl Damping {
             fraction: 1.0,
             square: 0.0,
             lagged: 0.0,
+            lagged_two: 0.0,
             previous: None,
+            before_previous: None,
             last_beyond: None,
             scored: 0,
             restored: None,
@@ -203,6 +209,7 @@ impl Damping {
     pub fn frame(&mut self, pulse: Option<f32>, trusted: bool) -> PulseShare {
         let Some(u) = pulse.filter(|u| u.is_finite()) else {
             self.previous = None;
+            self.before_previous = None;
             self.last_beyond = None;
             return PulseShare::FULL;
         };
@@ -213,6 +220,10 @@ impl Damping {
         if let Some(p) = previous {
             self.lagged += (u * p - self.lagged) / w;
         }
+        if let Some(p) = self.before_previous {
+            self.lagged_two += (u * p - self.lagged_two) / w;
+        }
+        self.before_previous = previous;
         let bound = OUTLIER_RMS * libm::sqrtf(self.square);
         let measured = self.scored >= WINDOW_FRAMES && self.square > 0.0;
         // Two pulses in a row beyond the bound (frames without a pulse
@@ -248,6 +259,15 @@ impl Damping {
     }
 
     /// The share now, 1 when none is earned.
+    /// The measured correlation of pulses two frames apart (0 until
+    /// measured): well below 0, the loop swings (`super::pulse_weight`).
+    pub fn swing(&self) -> f32 {
+        if self.scored < WINDOW_FRAMES || !(self.square > 0.0) {
+            return 0.0;
+        }
+        clamp(self.lagged_two / self.square, -1.0, 1.0)
+    }
+
     pub fn fraction(&self) -> f32 {
         self.fraction
     }
@@ -284,6 +304,32 @@ mod tests {
         // An error walking by 1 arcsec a frame is no noise to ignore.
         let walking = mean_share(1.0, true);
         assert!(walking > 0.8, "{walking}");
+    }
+
+    #[test]
+    fn a_swing_of_four_frames_reads_below_the_bound_and_noise_does_not() {
+        use crate::mount::guiding::pulse_weight::SWING;
+        // A loop reacting to noise alone, at every share it earns.
+        let mut d = Damping::new(0.2);
+        let mut noise = Gaussian::new(7);
+        let mut error = 0.0f64;
+        let mut least = f32::INFINITY;
+        for k in 0..3_000 {
+            let pulse = 0.7 * (error + noise.next());
+            let share = d.frame(Some(pulse as f32), true);
+            error -= share.fraction as f64 * pulse;
+            if k >= WINDOW_FRAMES {
+                least = least.min(d.swing());
+            }
+        }
+        assert!(least > SWING, "{least}");
+        // Four frames a period under the same noise.
+        let mut d = Damping::new(0.2);
+        for k in 0..200 {
+            let swing = [3.0, 3.0, -3.0, -3.0][k % 4];
+            d.frame(Some((swing + noise.next()) as f32), true);
+        }
+        assert!(d.swing() < -0.7, "{}", d.swing());
     }
 
     /// Noise alone, anti-correlated pulses, until a share is earned.

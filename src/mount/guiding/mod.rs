@@ -12,7 +12,8 @@
 //!
 //! Its parts: `applied` (the applied correction C and the gear time),
 //! `framer` (the frames and their queue), `feed_forward` (the
-//! feed-forward in effect).
+//! feed-forward in effect), and for the learner `damping` (the share of a
+//! pulse carried out) and `pulse_weight` (the part of a pulse learned).
 //!
 //! # Units and signs
 //!
@@ -54,7 +55,8 @@
 //! guider asked for that much of the error it measured, so the error was
 //! about correction / aggressiveness (`guider_aggressiveness`, default 0.7;
 //! a filled frame has correction 0: the guider saw less than its minimum
-//! move). The mean of C over the interval matches what the guider measured:
+//! move). The learner weighs that pulse term down where the pulses show a
+//! guider that overcorrects (`pulse_weight`). The mean of C over the interval matches what the guider measured:
 //! the exposure averages the star over about that interval, and the model
 //! stamps a frame at the midpoint of the interval since the previous one.
 //! The frame is emitted when its pulse ends (its duration is known only
@@ -105,6 +107,7 @@ mod applied;
 pub mod damping;
 mod feed_forward;
 mod framer;
+pub mod pulse_weight;
 mod share;
 #[cfg(test)]
 mod tests;
