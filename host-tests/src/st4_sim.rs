@@ -439,6 +439,15 @@ impl Rig {
         }
     }
 
+    /// The part of a guide pulse the learner takes for gear error.
+    pub fn pulse_weight(&self) -> f32 {
+        match &self.learning.learner {
+            AnyLearner::Mkgp(l) => l.pulse_weight(),
+            AnyLearner::One(l) => l.pulse_weight(),
+            AnyLearner::None => 1.0,
+        }
+    }
+
     pub fn learner_counters(&self) -> LearnerCounters {
         self.learning.learner.counters()
     }
@@ -711,6 +720,8 @@ pub struct RunResult {
     pub guiding: GuidingCounters,
     pub learner: LearnerCounters,
     pub st4: St4Counters,
+    /// The learner's pulse weight at the end.
+    pub pulse_weight: f32,
 }
 
 /// One full run behind the default guider: `noise_px` 0 is noise-free (the
@@ -741,6 +752,7 @@ pub fn run_with(
         guiding: rig.guiding_counters(),
         learner: rig.learner_counters(),
         st4: rig.st4_counters(),
+        pulse_weight: rig.pulse_weight(),
     }
 }
 

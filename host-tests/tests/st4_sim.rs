@@ -369,13 +369,15 @@ fn observation_error(r: &Rig) -> (f64, f64) {
 /// Behind a trusted model with 1 px of noise the firmware earns a share
 /// below one and carries out the pulses in part; the observations it
 /// rebuilds from them (the motion the steps made plus the pulse over the
-/// aggressiveness) stay as right as with full pulses. Switched off
-/// (`least_pulse_share` 1), every pulse is carried out in full.
+/// aggressiveness) stay as right as with full pulses, and no swing lowers
+/// the weight of a pulse learned. Switched off (`least_pulse_share` 1),
+/// every pulse is carried out in full.
 #[test]
 fn damping_is_earned_and_learning_stays_right() {
     let on = damped_rig("C1", 0.2, 3600);
     let off = damped_rig("C1", 1.0, 3600);
     assert!(on.pulse_share() < 0.5, "{}", on.pulse_share());
+    assert_eq!(on.pulse_weight(), 1.0);
     let g = on.guiding_counters();
     assert!(g.ra_pulses_held_back > 500, "{g:?}");
     assert_eq!(off.pulse_share(), 1.0);
@@ -554,6 +556,8 @@ fn an_unstable_guider_is_held_or_left_to_itself() {
         },
         ..Setup::default()
     };
+    let swung = st4_sim::run_with(&cases[2], Firmware::Mkgp, 1.0, 1, slow);
+    assert!(swung.pulse_weight < 0.5, "{}", swung.pulse_weight);
     for r in st4_sim::table_with(&cases, &[1.0], slow) {
         let ratio = r.fw_mkgp / r.guider_only;
         println!("8 s {}: {r:?} {ratio:.3}", r.case);
