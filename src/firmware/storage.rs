@@ -14,7 +14,9 @@ use hal::storage::StorageFlash;
 use mkgp_mount::control_loop::port_mount::StoreRequest;
 use mkgp_mount::model::snapshot::{Phase, SnapshotError};
 use mkgp_mount::mount::config::MountConfig;
-use mkgp_mount::mount::learner::{Learner, MODEL_ONLY_FORMAT, RECORD_FORMAT, RECORD_MAX};
+use mkgp_mount::mount::learner::{
+    Learner, MODEL_ONLY_FORMAT, RECORD_FORMAT, RECORD_MAX, SHARE_FORMAT,
+};
 use mkgp_mount::mount::worm_index::WormIndex;
 use mkgp_mount::persist::{Erase, LoadError, Park, SaveError, Store};
 use mkgp_mount::port::mount_port::ModelOrigin;
@@ -136,9 +138,10 @@ pub async fn boot_park(store: &mut FirmwareStore) -> Option<Park> {
     }
 }
 
-/// The model record's formats the firmware restores: its own, and the
-/// older one without the pulse share (the share then earned again).
-const RECORD_FORMATS: [u16; 2] = [RECORD_FORMAT, MODEL_ONLY_FORMAT];
+/// The model record's formats the firmware restores: its own, the older
+/// one without the pulse weight (weight 1), and the oldest without the
+/// pulse share (the share then earned again).
+const RECORD_FORMATS: [u16; 3] = [RECORD_FORMAT, SHARE_FORMAT, MODEL_ONLY_FORMAT];
 
 /// Takes the saved model back at start-up, with the phase from a park or
 /// unknown; returns where the model came from.

@@ -17,7 +17,7 @@ use crate::model::snapshot::{
 };
 use crate::mount::config::Mount;
 use crate::mount::frame::{FeedForward, Frame, FrameKind};
-use crate::mount::guiding::damping::{Damping, SavedShare, SAVED_LEN};
+use crate::mount::guiding::damping::{Damping, SavedShare, SAVED_LEN, SAVED_LEN_BEFORE_WEIGHT};
 use crate::mount::guiding::pulse_weight::PulseWeight;
 use crate::persist::MODEL_RECORD_MAX;
 
@@ -29,14 +29,18 @@ use crate::persist::MODEL_RECORD_MAX;
 pub const FIRMWARE_STAGES: usize = 3;
 
 /// The store's format of the learner's record ([`Learner::snapshot`]): the
-/// pulse share ([`SavedShare`], [`SAVED_LEN`] bytes) and then the model's
-/// snapshot (`model::snapshot`, its format 1).
-pub const RECORD_FORMAT: u16 = 2;
+/// pulse share and weight ([`SavedShare`], [`SAVED_LEN`] bytes) and then
+/// the model's snapshot (`model::snapshot`, its format 1).
+pub const RECORD_FORMAT: u16 = 3;
+/// The record before the pulse weight was saved: the share without it
+/// ([`SAVED_LEN_BEFORE_WEIGHT`] bytes), then the model's snapshot. Still
+/// restored, with weight 1.
+pub const SHARE_FORMAT: u16 = 2;
 /// The record before the pulse share was saved: the model's snapshot
 /// alone (format 1, a board's older save). Still restored, the share
 /// earned again.
 pub const MODEL_ONLY_FORMAT: u16 = 1;
-/// Largest record: 8,160 bytes for three stages.
+/// Largest record: 8,164 bytes for three stages.
 pub const RECORD_MAX: usize = SAVED_LEN + SNAPSHOT_MAX;
 // The record formats wrap the model's snapshot format 1: a new model
 // layout needs a new record format.
@@ -153,7 +157,7 @@ impl<const N: usize> Learner<N> {
         self.pulse_weight.weight()
     }
 
-    /// Write the learned model and the pulse share into `out` (at most
+    /// Write the learned model, the pulse share and weight into `out` (at most
     /// [`RECORD_MAX`] bytes; store it as [`RECORD_FORMAT`]); returns the
     /// length. Not per frame: it reads a thousand cells. Refused after a
     /// restore until the saved data is placed (`SnapshotError::Placing`):
@@ -170,13 +174,14 @@ impl<const N: usize> Learner<N> {
             },
             e => e,
         })?;
-        share.copy_from_slice(&self.damping.saved().to_bytes());
+        let saved = self.damping.saved().with_weight(self.pulse_weight.weight());
+        share.copy_from_slice(&saved.to_bytes());
         Ok(SAVED_LEN + n)
     }
 
     /// After a power cycle: take the model back from a record's bytes
-    /// stored as `format` ([`RECORD_FORMAT`], or [`MODEL_ONLY_FORMAT`]
-    /// with the share earned again), checked first (an error leaves the
+    /// stored as `format` ([`RECORD_FORMAT`]; [`SHARE_FORMAT`] with the
+    /// pulse weight 1; [`MODEL_ONLY_FORMAT`] with the share earned again), checked first (an error leaves the
     /// learner as it was: a cut or garbled record, or another format).
     /// `phase`: whether the gear's phase carried over (index or park) and
     /// by how much; see [`Phase`]. The saved share is taken up once the
@@ -188,25 +193,28 @@ impl<const N: usize> Learner<N> {
         format: u16,
         phase: Phase,
     ) -> Result<(), SnapshotError> {
-        let (share, model) = match format {
-            RECORD_FORMAT => {
-                let (share, model) =
-                    bytes
-                        .split_at_checked(SAVED_LEN)
-                        .ok_or(SnapshotError::Length {
-                            expected: RECORD_MAX,
-                            found: bytes.len(),
-                        })?;
-                (Some(SavedShare::parse(share)?), model)
-            }
-            MODEL_ONLY_FORMAT => (None, bytes),
+        let share_len = match format {
+            RECORD_FORMAT => SAVED_LEN,
+            SHARE_FORMAT => SAVED_LEN_BEFORE_WEIGHT,
+            MODEL_ONLY_FORMAT => 0,
             other => return Err(SnapshotError::Version(other)),
+        };
+        let (share, model) = bytes
+            .split_at_checked(share_len)
+            .ok_or(SnapshotError::Length {
+                expected: RECORD_MAX,
+                found: bytes.len(),
+            })?;
+        let share = match share_len {
+            0 => None,
+            _ => Some(SavedShare::parse(share)?),
         };
         let snapshot = Snapshot::parse(model, N)?;
         self.guider.restore(&snapshot, phase)?;
         self.last_gear_s = None;
         self.settling = 0;
         self.damping.restore(share);
+        self.pulse_weight = PulseWeight::restored(share.map_or(1.0, |s| s.weight()));
         Ok(())
     }
 
@@ -300,6 +308,7 @@ impl<const N: usize> Learner<N> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::snapshot::crc32;
     use crate::mount::config::MountConfig;
 
     #[test]
@@ -356,6 +365,7 @@ mod tests {
         }
         let share = a.pulse_share();
         assert!(share < 0.5, "{share}");
+        a.pulse_weight = PulseWeight::restored(0.5);
         let mut bytes = [0u8; RECORD_MAX];
         let n = a.snapshot(&mut bytes).unwrap();
         assert_eq!(
@@ -378,8 +388,8 @@ mod tests {
             bytes[at] ^= 0x40;
         }
         assert_eq!(
-            b.restore(&bytes[..n], 3, unknown),
-            Err(SnapshotError::Version(3))
+            b.restore(&bytes[..n], 4, unknown),
+            Err(SnapshotError::Version(4))
         );
         // The model's snapshot alone read as the current record: refused.
         assert!(b
@@ -392,6 +402,7 @@ mod tests {
         };
         assert_eq!(b.restore(&bytes[..n], RECORD_FORMAT, known), Ok(()));
         assert_eq!(b.pulse_share(), share);
+        assert_eq!(b.pulse_weight(), 0.5);
         let mut again = [0u8; RECORD_MAX];
         let n2 = b.snapshot(&mut again).unwrap();
         let (sa, sb) = (
@@ -407,10 +418,17 @@ mod tests {
             c.restore(&bytes[SAVED_LEN..n], MODEL_ONLY_FORMAT, known),
             Ok(())
         );
-        assert_eq!(c.pulse_share(), 1.0);
+        assert_eq!((c.pulse_share(), c.pulse_weight()), (1.0, 1.0));
         let n3 = c.snapshot(&mut again).unwrap();
         let sc = Snapshot::parse(&again[SAVED_LEN..n3], 2).unwrap();
         assert!(sa.cells().eq(sc.cells()));
+        // A record of format 2: the share without the weight.
+        let mut old = std::vec::Vec::from(&bytes[..12]);
+        old.extend_from_slice(&crc32(&bytes[..12]).to_le_bytes());
+        old.extend_from_slice(&bytes[SAVED_LEN..n]);
+        let mut d: std::boxed::Box<Learner<2>> = std::boxed::Box::new(Learner::new(&m));
+        assert_eq!(d.restore(&old, SHARE_FORMAT, known), Ok(()));
+        assert_eq!((d.pulse_share(), d.pulse_weight()), (share, 1.0));
     }
 
     /// F5 through the learner: an observation the model refuses (beyond

@@ -40,6 +40,7 @@
 use crate::model::numeric::clamp;
 use crate::model::snapshot::{crc32, Field, SnapshotError};
 use crate::mount::frame::PulseShare;
+use crate::mount::guiding::pulse_weight::LEAST;
 
 /// Frames the pulse statistics average over (about two minutes at 2 s):
 /// the correlation's spread is about 1 / sqrt(frames).
@@ -81,44 +82,61 @@ pub struct Damping {
     restored: Option<f32>,
 }
 
-/// The damping as saved with the model: [`SAVED_LEN`] bytes, little-endian:
-/// the share, the mean square of the pulses and the mean product of
-/// neighbouring ones (`f32` each), and the CRC-32 of those 12 bytes. A
-/// damping that has measured nothing yet saves share 1 and zeros: nothing
-/// to restore.
+/// The damping and the pulse weight as saved with the model: [`SAVED_LEN`]
+/// bytes, little-endian: the share, the mean square of the pulses, the
+/// mean product of neighbouring ones and the pulse weight
+/// (`super::pulse_weight`; `f32` each), and the CRC-32 of those 16 bytes.
+/// Record format 2 saved the first three alone ([`SAVED_LEN_BEFORE_WEIGHT`]
+/// bytes, the CRC-32 of 12): read with weight 1. A damping that has
+/// measured nothing yet saves share 1 and zeros: nothing to restore.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SavedShare {
     fraction: f32,
     square: f32,
     lagged: f32,
+    weight: f32,
 }
 
 /// Bytes of a [`SavedShare`].
-pub const SAVED_LEN: usize = 16;
+pub const SAVED_LEN: usize = 20;
+/// Bytes of a [`SavedShare`] saved before the pulse weight (record format 2).
+pub const SAVED_LEN_BEFORE_WEIGHT: usize = 16;
 
 impl SavedShare {
     /// Checks everything before anything is used: length, checksum, and
     /// each value finite and in range (a share in (0, 1], a mean square
-    /// >= 0).
+    /// >= 0, a weight in [`LEAST`]..=1).
     pub fn parse(bytes: &[u8]) -> Result<Self, SnapshotError> {
-        let length = SnapshotError::Length {
-            expected: SAVED_LEN,
-            found: bytes.len(),
+        let words = match bytes.len() {
+            SAVED_LEN => 4,
+            SAVED_LEN_BEFORE_WEIGHT => 3,
+            found => {
+                return Err(SnapshotError::Length {
+                    expected: SAVED_LEN,
+                    found,
+                })
+            }
         };
-        let bytes: &[u8; SAVED_LEN] = bytes.try_into().map_err(|_| length)?;
         let word = |k: usize| {
             let mut w = [0u8; 4];
             w.copy_from_slice(bytes.get(4 * k..4 * k + 4).unwrap_or(&[0; 4]));
             w
         };
-        if crc32(bytes.get(..12).unwrap_or(&[])) != u32::from_le_bytes(word(3)) {
+        if crc32(bytes.get(..4 * words).unwrap_or(&[])) != u32::from_le_bytes(word(words)) {
             return Err(SnapshotError::Checksum);
         }
-        let [fraction, square, lagged] = [0, 1, 2].map(|k| f32::from_le_bytes(word(k)));
+        let [fraction, square, lagged, weight] = [0, 1, 2, 3].map(|k| {
+            if k < words {
+                f32::from_le_bytes(word(k))
+            } else {
+                1.0
+            }
+        });
         let ok = fraction > 0.0
             && fraction <= 1.0
             && (0.0..=MAX_SAVED_SQUARE).contains(&square)
-            && lagged.abs() <= MAX_SAVED_SQUARE;
+            && lagged.abs() <= MAX_SAVED_SQUARE
+            && (LEAST..=1.0).contains(&weight);
         if !ok {
             return Err(SnapshotError::Invalid(Field::PulseShare));
         }
@@ -126,18 +144,28 @@ impl SavedShare {
             fraction,
             square,
             lagged,
+            weight,
         })
+    }
+
+    /// The same with the pulse weight `weight`.
+    pub fn with_weight(self, weight: f32) -> Self {
+        SavedShare { weight, ..self }
+    }
+
+    pub fn weight(&self) -> f32 {
+        self.weight
     }
 
     /// The bytes [`parse`](Self::parse) reads.
     pub fn to_bytes(&self) -> [u8; SAVED_LEN] {
         let mut out = [0u8; SAVED_LEN];
-        let words = [self.fraction, self.square, self.lagged].map(f32::to_le_bytes);
+        let words = [self.fraction, self.square, self.lagged, self.weight].map(f32::to_le_bytes);
         for (chunk, w) in out.chunks_exact_mut(4).zip(words) {
             chunk.copy_from_slice(&w);
         }
-        let crc = crc32(out.get(..12).unwrap_or(&[])).to_le_bytes();
-        if let Some(tail) = out.get_mut(12..) {
+        let crc = crc32(out.get(..16).unwrap_or(&[])).to_le_bytes();
+        if let Some(tail) = out.get_mut(16..) {
             tail.copy_from_slice(&crc);
         }
         out
@@ -163,19 +191,22 @@ impl Damping {
     }
 
     /// What to save with the model: the share and its statistics once
-    /// measured, else nothing earned.
+    /// measured, else nothing earned; the pulse weight 1 (the learner's
+    /// [`SavedShare::with_weight`]).
     pub fn saved(&self) -> SavedShare {
         if self.scored < WINDOW_FRAMES || !(self.square > 0.0) {
             return SavedShare {
                 fraction: 1.0,
                 square: 0.0,
                 lagged: 0.0,
+                weight: 1.0,
             };
         }
         SavedShare {
             fraction: self.fraction,
             square: self.square,
             lagged: self.lagged,
+            weight: 1.0,
         }
     }
 
@@ -390,7 +421,8 @@ mod tests {
             garbled[i] ^= 0x10;
             assert_eq!(SavedShare::parse(&garbled), Err(SnapshotError::Checksum));
         }
-        // A share out of range with a matching checksum: a writer's bug.
+        // A share or a weight out of range with a matching checksum: a
+        // writer's bug.
         for fraction in [0.0, 1.5, f32::NAN] {
             let bad = SavedShare {
                 fraction,
@@ -401,6 +433,29 @@ mod tests {
                 Err(SnapshotError::Invalid(Field::PulseShare))
             );
         }
+        for weight in [0.0, LEAST - 0.01, 1.01, f32::NAN] {
+            assert_eq!(
+                SavedShare::parse(&d.saved().with_weight(weight).to_bytes()),
+                Err(SnapshotError::Invalid(Field::PulseShare))
+            );
+        }
+    }
+
+    /// Record format 2 saved the share without the weight: the first three
+    /// words and the CRC-32 of those 12 bytes.
+    #[test]
+    fn a_share_saved_before_the_weight_reads_with_weight_one() {
+        let mut d = Damping::new(0.2);
+        earned(&mut d);
+        let saved = d.saved().with_weight(0.5);
+        let bytes = saved.to_bytes();
+        let mut old = [0u8; SAVED_LEN_BEFORE_WEIGHT];
+        old[..12].copy_from_slice(&bytes[..12]);
+        old[12..].copy_from_slice(&crc32(&bytes[..12]).to_le_bytes());
+        assert_eq!(SavedShare::parse(&old), Ok(saved.with_weight(1.0)));
+        assert_eq!(SavedShare::parse(&bytes), Ok(saved));
+        old[3] ^= 1;
+        assert_eq!(SavedShare::parse(&old), Err(SnapshotError::Checksum));
     }
 
     #[test]

@@ -16,9 +16,9 @@
 //! noise that correlation is `(1 - G)` times the neighbours' one, `-G/2`,
 //! so never below -1/8. So while the pulses two frames apart are
 //! correlated below [`SWING`], the model takes a smaller part of each
-//! pulse, down to [`LEAST`]; the weight does not come back within a
-//! session (a swing is the only evidence, and it stops once the weight is
-//! low enough). A real gear error of four to five frames a period left to
+//! pulse, down to [`LEAST`]; the weight does not come back (a swing is
+//! the only evidence, and it stops once the weight is low enough). It is
+//! saved with the model, and starts at 1 again with a model reset. A real gear error of four to five frames a period left to
 //! the pulses reads the same; at such periods the model has nothing to
 //! learn of it anyway (its shortest stage is 20 s).
 //!
@@ -30,6 +30,7 @@
 //! asks `1 / weight` times the correction it needs asks that much more
 //! beyond its noise too.
 
+use crate::model::numeric::clamp;
 use crate::mount::frame::PulseShare;
 
 /// Correlation of pulses two frames apart below which the loop swings.
@@ -48,6 +49,17 @@ pub struct PulseWeight {
 
 impl PulseWeight {
     pub const FULL: PulseWeight = PulseWeight { weight: 1.0 };
+
+    /// A weight saved with the model, clamped to [`LEAST`]..=1 (NaN: 1).
+    pub fn restored(weight: f32) -> Self {
+        PulseWeight {
+            weight: if weight.is_nan() {
+                1.0
+            } else {
+                clamp(weight, LEAST, 1.0)
+            },
+        }
+    }
 
     /// After a guide frame: `swing` is the measured correlation of pulses
     /// two frames apart (0 while not measured).
@@ -101,5 +113,8 @@ mod tests {
         };
         assert_eq!(w.share(share).up_to_arcsec, 10.0);
         assert_eq!(PulseWeight::FULL.share(share), share);
+        assert_eq!(PulseWeight::restored(0.5).weight(), 0.5);
+        assert_eq!(PulseWeight::restored(0.0).weight(), LEAST);
+        assert_eq!(PulseWeight::restored(f32::NAN), PulseWeight::FULL);
     }
 }
