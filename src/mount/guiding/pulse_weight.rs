@@ -14,12 +14,14 @@
 //! Such a swing makes pulses two frames apart anti-correlated. A loop's
 //! reaction to noise never does so by much: for a loop of gain G on white
 //! noise that correlation is `(1 - G)` times the neighbours' one, `-G/2`,
-//! so never below -1/8. So while the pulses two frames apart are
-//! correlated below [`SWING`], the model takes a smaller part of each
-//! pulse, down to [`LEAST`]; the weight does not come back (a swing is
-//! the only evidence, and it stops once the weight is low enough). It is
-//! saved with the model, and starts at 1 again with a model reset. A real gear error of four to five frames a period left to
-//! the pulses reads the same; at such periods the model has nothing to
+//! so never below -1/8 on average (the damping's 64-frame running means
+//! spread it: -0.34 at the least over 3,000 frames of noise). So while the
+//! pulses two frames apart are correlated below [`SWING`], the model takes
+//! a smaller part of each pulse, down to [`LEAST`]. The weight does not
+//! come back (a swing is the only evidence, and it stops once the weight
+//! is low enough); it is saved with the model, and starts at 1 again with
+//! a model reset. A real gear error of four to five frames a period left
+//! to the pulses reads the same; at such periods the model has nothing to
 //! learn of it anyway (its shortest stage is 20 s).
 //!
 //! The same evidence widens the pulses the firmware shares: a pulse beyond
