@@ -322,6 +322,7 @@ fn learner_counter(c: &LearnerCounters, index: usize) -> Option<(&'static str, u
         1 => ("learned", c.learned),
         2 => ("not_learned", c.not_learned),
         3 => ("dithers", c.dithers),
+        4 => ("bumps", c.bumps),
         _ => return None,
     })
 }

@@ -347,7 +347,7 @@ fn the_port_reads_the_loop_and_the_learner_summary() {
     );
     assert_eq!(
         r.ask(":~Cl#"),
-        "frames=7 learned=0 not_learned=0 dithers=0#"
+        "frames=7 learned=0 not_learned=0 dithers=0 bumps=0#"
     );
     r.state.learner.faults.inference_failures = 2;
     assert_eq!(

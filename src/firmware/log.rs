@@ -105,11 +105,12 @@ pub fn frame(learner: &Learner<STAGES>, msg: &FrameRecord, ff: &FeedForward) {
     let l = learner.counters();
     let m = model.faults();
     defmt::info!(
-        "model counters: frames {}, learned {}, not learned {}, dithers {}",
+        "model counters: frames {}, learned {}, not learned {}, dithers {}, bumps {}",
         l.frames,
         l.learned,
         l.not_learned,
-        l.dithers
+        l.dithers,
+        l.bumps
     );
     defmt::info!(
         "model faults: bad time {}, bad input {}, inference {}, grid restarts {}, bad dithers {}",

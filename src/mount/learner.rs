@@ -17,6 +17,7 @@ use crate::model::snapshot::{
 };
 use crate::mount::config::Mount;
 use crate::mount::frame::{FeedForward, Frame, FrameKind};
+use crate::mount::guiding::bump::{self, Bump};
 use crate::mount::guiding::damping::{Damping, SavedShare, SAVED_LEN, SAVED_LEN_BEFORE_WEIGHT};
 use crate::mount::guiding::pulse_weight::PulseWeight;
 use crate::persist::MODEL_RECORD_MAX;
@@ -59,12 +60,14 @@ pub struct LearnerCounters {
     pub frames: u32,
     /// Of them learned as observations of the gear error.
     pub learned: u32,
-    /// Not learned: silence, dithers and the frames settling after one
-    /// (passed as unmeasured), and frames the model refused (a bad
+    /// Not learned: silence, dithers and bumps and the frames settling
+    /// after one (passed as unmeasured), and frames the model refused (a bad
     /// observation or time, counted in its `Faults`).
     pub not_learned: u32,
     /// Dithers the model was told about.
     pub dithers: u32,
+    /// Steps of the star taken out of the observations (`bump`).
+    pub bumps: u32,
 }
 
 /// The slow part: the model. Call [`learn`](Self::learn) once per frame
@@ -79,6 +82,7 @@ pub struct Learner<const N: usize> {
     settling: u8,
     damping: Damping,
     pulse_weight: PulseWeight,
+    bump: Bump,
     counters: LearnerCounters,
 }
 
@@ -115,8 +119,9 @@ impl<const N: usize> Learner<N> {
         uninit_field!(slot, settling).write(0);
         uninit_field!(slot, damping).write(Damping::new(mount.config().least_pulse_share));
         uninit_field!(slot, pulse_weight).write(PulseWeight::FULL);
+        uninit_field!(slot, bump).write(Bump::NONE);
         uninit_field!(slot, counters).write(LearnerCounters::default());
-        // SAFETY: all 8 fields are written.
+        // SAFETY: all 9 fields are written.
         unsafe { slot.assume_init_mut() }
     }
 
@@ -145,6 +150,7 @@ impl<const N: usize> Learner<N> {
         self.settling = 0;
         self.damping.reset();
         self.pulse_weight = PulseWeight::FULL;
+        self.bump = Bump::NONE;
     }
 
     /// The share of the RA guide pulses carried out now (1: in full).
@@ -253,6 +259,21 @@ impl<const N: usize> Learner<N> {
         } else {
             cadence
         };
+        // A pulse far beyond the recent ones behind a trusted model: the
+        // star stepped. Settle as after a dither and measure the step.
+        let stepped = frame.kind == FrameKind::Measured
+            && self.settling == 0
+            && self.guider.blend_weight() >= TRUSTED_BLEND
+            && self
+                .damping
+                .bound()
+                .is_some_and(|b| frame.pulse_arcsec.abs() > bump::BOUNDS * b);
+        if stepped {
+            self.guider.dithered(0.0, 1.0);
+            self.settling = DITHER_FRAMES;
+            self.bump.start(DITHER_FRAMES);
+            self.counters.bumps = self.counters.bumps.saturating_add(1);
+        }
         if let FrameKind::Dither { .. } = frame.kind {
             // Settle without learning. Amount 0: gear time comes from the steps,
             // which already include the dither's (`crate::mount::guiding`).
@@ -266,25 +287,29 @@ impl<const N: usize> Learner<N> {
         if settling {
             self.settling -= 1;
         }
-        let observation = match frame.kind {
-            FrameKind::Measured if !settling => Some(
+        let observed = match frame.kind {
+            FrameKind::Measured => Some(
                 self.pulse_weight
                     .observation(frame.applied_arcsec as f64, frame.gear_error_arcsec as f64),
             ),
             _ => None,
         };
+        self.bump.frame(d, observed, !settling);
+        let level = self.bump.level();
+        let observation = observed.filter(|_| !settling).map(|o| o - level);
         let step = next + 0.5 * d;
         let faults_before = self.guider.faults();
         let change = self.guider.observe(
             t,
             observation,
-            frame.applied_arcsec as f64,
+            frame.applied_arcsec as f64 - level,
             self.snr,
             step as f32,
         );
         self.count(observation.is_some() && !self.refused_since(faults_before));
         let rate = change as f64 / (next + d);
         let rate = if rate.is_finite() { rate as f32 } else { 0.0 };
+        self.bump.installed(rate);
         // A guide frame's pulse (0 when the guider sent none); the others
         // (dithers, settling, silence) are carried out in full.
         let pulse = match frame.kind {

@@ -290,6 +290,12 @@ impl Damping {
     }
 
     /// The share now, 1 when none is earned.
+    /// 4 RMS of the recent pulses (arcsec), once measured.
+    pub fn bound(&self) -> Option<f32> {
+        (self.scored >= WINDOW_FRAMES && self.square > 0.0)
+            .then(|| OUTLIER_RMS * libm::sqrtf(self.square))
+    }
+
     /// The measured correlation of pulses two frames apart (0 until
     /// measured): well below 0, the loop swings (`super::pulse_weight`).
     pub fn swing(&self) -> f32 {

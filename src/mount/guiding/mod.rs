@@ -104,6 +104,7 @@
 //! NaN never leaves: every input that could carry one is checked.
 
 mod applied;
+pub mod bump;
 pub mod damping;
 mod feed_forward;
 mod framer;
