@@ -13,7 +13,8 @@
 //! Its parts: `applied` (the applied correction C and the gear time),
 //! `framer` (the frames and their queue), `feed_forward` (the
 //! feed-forward in effect), and for the learner `damping` (the share of a
-//! pulse carried out) and `pulse_weight` (the part of a pulse learned).
+//! pulse carried out), `pulse_weight` (the part of a pulse learned) and
+//! `bump` (a step of the star taken out of the observations).
 //!
 //! # Units and signs
 //!
