@@ -163,8 +163,8 @@ impl<const N: usize> Learner<N> {
         self.pulse_weight.weight()
     }
 
-    /// Write the learned model, the pulse share and weight into `out` (at most
-    /// [`RECORD_MAX`] bytes; store it as [`RECORD_FORMAT`]); returns the
+    /// Write the learned model, the pulse share and weight into `out` (at
+    /// most [`RECORD_MAX`] bytes; store it as [`RECORD_FORMAT`]); returns the
     /// length. Not per frame: it reads a thousand cells. Refused after a
     /// restore until the saved data is placed (`SnapshotError::Placing`):
     /// half a worm period with the phase unknown; with only the worm's, a
@@ -187,8 +187,9 @@ impl<const N: usize> Learner<N> {
 
     /// After a power cycle: take the model back from a record's bytes
     /// stored as `format` ([`RECORD_FORMAT`]; [`SHARE_FORMAT`] with the
-    /// pulse weight 1; [`MODEL_ONLY_FORMAT`] with the share earned again), checked first (an error leaves the
-    /// learner as it was: a cut or garbled record, or another format).
+    /// pulse weight 1; [`MODEL_ONLY_FORMAT`] with the share earned again),
+    /// checked first (an error leaves the learner as it was: a cut or
+    /// garbled record, or another format).
     /// `phase`: whether the gear's phase carried over (index or park) and
     /// by how much; see [`Phase`]. The saved share is taken up once the
     /// restored model is trusted. Gear time starts again with the next

@@ -57,9 +57,10 @@
 //! about correction / aggressiveness (`guider_aggressiveness`, default 0.7;
 //! a filled frame has correction 0: the guider saw less than its minimum
 //! move). The learner weighs that pulse term down where the pulses show a
-//! guider that overcorrects (`pulse_weight`). The mean of C over the interval matches what the guider measured:
-//! the exposure averages the star over about that interval, and the model
-//! stamps a frame at the midpoint of the interval since the previous one.
+//! guider that overcorrects (`pulse_weight`). The mean of C over the
+//! interval matches what the guider measured: the exposure averages the
+//! star over about that interval, and the model stamps a frame at the
+//! midpoint of the interval since the previous one.
 //! The frame is emitted when its pulse ends (its duration is known only
 //! then) and stamped with the gear time of the pulse start.
 //!
