@@ -241,6 +241,19 @@ impl<const N: usize> Learner<N> {
         }
     }
 
+    /// The model's feed-forward is trusted in full.
+    fn trusted(&self) -> bool {
+        self.guider.blend_weight() >= TRUSTED_BLEND
+    }
+
+    /// Settle for a dither's frames without learning. Amount 0: gear time
+    /// comes from the steps, which already include a dither's
+    /// (`crate::mount::guiding`).
+    fn settle(&mut self) {
+        self.guider.dithered(0.0, 1.0);
+        self.settling = DITHER_FRAMES;
+    }
+
     /// Learn one frame and return the feed-forward for the time to the next.
     pub fn learn(&mut self, frame: Frame) -> FeedForward {
         let t = frame.gear_time_s;
@@ -264,22 +277,18 @@ impl<const N: usize> Learner<N> {
         // star stepped. Settle as after a dither and measure the step.
         let stepped = frame.kind == FrameKind::Measured
             && self.settling == 0
-            && self.guider.blend_weight() >= TRUSTED_BLEND
+            && self.trusted()
             && self
                 .damping
                 .bound()
                 .is_some_and(|b| frame.pulse_arcsec.abs() > bump::BOUNDS * b);
         if stepped {
-            self.guider.dithered(0.0, 1.0);
-            self.settling = DITHER_FRAMES;
+            self.settle();
             self.bump.start(DITHER_FRAMES);
             self.counters.bumps = self.counters.bumps.saturating_add(1);
         }
         if let FrameKind::Dither { .. } = frame.kind {
-            // Settle without learning. Amount 0: gear time comes from the steps,
-            // which already include the dither's (`crate::mount::guiding`).
-            self.guider.dithered(0.0, 1.0);
-            self.settling = DITHER_FRAMES;
+            self.settle();
             self.counters.dithers = self.counters.dithers.saturating_add(1);
         }
         // The guider counts its settling frames itself (the dither frame is
@@ -317,8 +326,7 @@ impl<const N: usize> Learner<N> {
             FrameKind::Measured if !settling => Some(frame.pulse_arcsec),
             _ => None,
         };
-        let trusted = self.guider.blend_weight() >= TRUSTED_BLEND;
-        let pulse_share = self.damping.frame(pulse, trusted);
+        let pulse_share = self.damping.frame(pulse, self.trusted());
         if pulse.is_some() {
             self.pulse_weight.frame(self.damping.swing());
         }

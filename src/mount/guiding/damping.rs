@@ -194,7 +194,7 @@ impl Damping {
     /// measured, else nothing earned; the pulse weight 1 (the learner's
     /// [`SavedShare::with_weight`]).
     pub fn saved(&self) -> SavedShare {
-        if self.scored < WINDOW_FRAMES || !(self.square > 0.0) {
+        if !self.measured() {
             return SavedShare {
                 fraction: 1.0,
                 square: 0.0,
@@ -255,8 +255,8 @@ impl Damping {
             self.lagged_two += (u * p - self.lagged_two) / w;
         }
         self.before_previous = previous;
-        let bound = OUTLIER_RMS * libm::sqrtf(self.square);
-        let measured = self.scored >= WINDOW_FRAMES && self.square > 0.0;
+        let bound = self.outlier_bound();
+        let measured = self.measured();
         // Two pulses in a row beyond the bound (frames without a pulse
         // between them), the same way: an error the loop follows (a
         // calibration's steps, a bump). One alone, or one answered the
@@ -289,22 +289,31 @@ impl Damping {
         }
     }
 
-    /// The share now, 1 when none is earned.
+    /// A window of pulses scored, not all of them 0.
+    fn measured(&self) -> bool {
+        self.scored >= WINDOW_FRAMES && self.square > 0.0
+    }
+
+    /// [`OUTLIER_RMS`] times the RMS of the recent pulses, arcsec.
+    fn outlier_bound(&self) -> f32 {
+        OUTLIER_RMS * libm::sqrtf(self.square)
+    }
+
     /// 4 RMS of the recent pulses (arcsec), once measured.
     pub fn bound(&self) -> Option<f32> {
-        (self.scored >= WINDOW_FRAMES && self.square > 0.0)
-            .then(|| OUTLIER_RMS * libm::sqrtf(self.square))
+        self.measured().then(|| self.outlier_bound())
     }
 
     /// The measured correlation of pulses two frames apart (0 until
     /// measured): well below 0, the loop swings (`super::pulse_weight`).
     pub fn swing(&self) -> f32 {
-        if self.scored < WINDOW_FRAMES || !(self.square > 0.0) {
+        if !self.measured() {
             return 0.0;
         }
         clamp(self.lagged_two / self.square, -1.0, 1.0)
     }
 
+    /// The share now, 1 when none is earned.
     pub fn fraction(&self) -> f32 {
         self.fraction
     }
