@@ -273,11 +273,11 @@ impl<const N: usize> Learner<N> {
         } else {
             cadence
         };
-        // A pulse far beyond the recent ones behind a trusted model: the
-        // star stepped. Settle as after a dither and measure the step.
+        // A pulse far beyond the recent ones: the star stepped. Settle as
+        // after a dither and measure the step, trusted model or not (a step
+        // learned before the model is trusted stays in its data).
         let stepped = frame.kind == FrameKind::Measured
             && self.settling == 0
-            && self.trusted()
             && self
                 .damping
                 .bound()
@@ -374,6 +374,32 @@ mod tests {
         });
         let c = l.counters();
         assert_eq!((c.frames, c.learned, c.dithers), (51, 50, 1));
+    }
+
+    /// A pulse far beyond the recent ones is a step of the star, taken out
+    /// before the model has earned any trust too.
+    #[test]
+    fn a_step_before_trust_is_taken_out() {
+        let m = MountConfig::default().validate().unwrap();
+        let mut l: std::boxed::Box<Learner<1>> = std::boxed::Box::new(Learner::new(&m));
+        let frame = |k: u32, pulse: f32| Frame {
+            gear_time_s: 2.0 * k as f64,
+            interval_s: 2.0,
+            kind: FrameKind::Measured,
+            gear_error_arcsec: pulse / 0.7,
+            applied_arcsec: 0.0,
+            pulse_arcsec: pulse,
+            filled: false,
+        };
+        // Pulses of 0.2-0.5 arcsec, in no pattern a model could learn.
+        let small = |k: u32| 0.2 + 0.3 * ((k * 7919) % 13) as f32 / 13.0;
+        for k in 0..100 {
+            l.learn(frame(k, small(k)));
+        }
+        assert!(l.guider().blend_weight() < TRUSTED_BLEND);
+        assert_eq!(l.counters().bumps, 0);
+        l.learn(frame(100, 18.0));
+        assert_eq!(l.counters().bumps, 1);
     }
 
     /// A learner restored from another's bytes holds the same model and
