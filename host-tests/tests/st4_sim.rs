@@ -489,13 +489,14 @@ fn errors_no_model_explains_stay_below_the_guider_alone() {
 #[test]
 fn a_bump_is_taken_out_of_the_observations() {
     let cases: Vec<Case> = ["C1", "C5", "C6"].into_iter().map(case).collect();
-    let setup = Setup {
+    let bump = |arcsec| Setup {
         sky: Sky {
-            bump_arcsec: 30.0,
+            bump_arcsec: arcsec,
             ..Sky::default()
         },
         ..Setup::default()
     };
+    let setup = bump(30.0);
     let run = st4_sim::run_with(&cases[1], Firmware::Mkgp, 1.0, 1, setup);
     // Eleven steps in 3 h, the first before the model is trusted.
     assert_eq!(run.learner.bumps, 11, "{:?}", run.learner);
@@ -509,17 +510,14 @@ fn a_bump_is_taken_out_of_the_observations() {
     }
     // 100 arcsec, noise-free: the first step, before trust, learned as
     // gear error cost C5 1.010 x the guider alone (0.995 taken out).
-    let big = Setup {
-        sky: Sky {
-            bump_arcsec: 100.0,
-            ..Sky::default()
-        },
-        ..Setup::default()
-    };
+    let big = bump(100.0);
     let alone = st4_sim::run_with(&cases[1], Firmware::GuiderOnly, 0.0, 1, big);
     let fw = st4_sim::run_with(&cases[1], Firmware::Mkgp, 0.0, 1, big);
     let ratio = fw.rms / alone.rms;
-    println!("bump 100 C5 noise 0: {ratio:.3}, steps {}", fw.learner.bumps);
+    println!(
+        "bump 100 C5 noise 0: {ratio:.3}, steps {}",
+        fw.learner.bumps
+    );
     if ratio > 1.0 {
         failures.push(format!("bump 100 C5 noise 0: {ratio:.4}"));
     }
