@@ -391,7 +391,8 @@ mod tests {
             pulse_arcsec: pulse,
             filled: false,
         };
-        // Pulses of 0.2-0.5 arcsec, in no pattern a model could learn.
+        // Small pulses (0.2-0.5 arcsec): their RMS sets the bound, and
+        // nothing in them earns the model its trust.
         let small = |k: u32| 0.2 + 0.3 * ((k * 7919) % 13) as f32 / 13.0;
         for k in 0..100 {
             l.learn(frame(k, small(k)));
