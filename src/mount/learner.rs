@@ -345,6 +345,19 @@ mod tests {
     use crate::model::snapshot::crc32;
     use crate::mount::config::MountConfig;
 
+    /// Measured frame `k` of a 2 s cadence: its observation and its pulse.
+    fn measured(k: u32, error: f32, pulse: f32) -> Frame {
+        Frame {
+            gear_time_s: 2.0 * k as f64,
+            interval_s: 2.0,
+            kind: FrameKind::Measured,
+            gear_error_arcsec: error,
+            applied_arcsec: 0.0,
+            pulse_arcsec: pulse,
+            filled: false,
+        }
+    }
+
     #[test]
     fn learner_gives_a_finite_feed_forward() {
         let m = MountConfig::default().validate().unwrap();
@@ -382,15 +395,7 @@ mod tests {
     fn a_step_before_trust_is_taken_out() {
         let m = MountConfig::default().validate().unwrap();
         let mut l: std::boxed::Box<Learner<1>> = std::boxed::Box::new(Learner::new(&m));
-        let frame = |k: u32, pulse: f32| Frame {
-            gear_time_s: 2.0 * k as f64,
-            interval_s: 2.0,
-            kind: FrameKind::Measured,
-            gear_error_arcsec: pulse / 0.7,
-            applied_arcsec: 0.0,
-            pulse_arcsec: pulse,
-            filled: false,
-        };
+        let frame = |k: u32, pulse: f32| measured(k, pulse / 0.7, pulse);
         // Small pulses (0.2-0.5 arcsec): their RMS sets the bound, and
         // nothing in them earns the model its trust.
         let small = |k: u32| 0.2 + 0.3 * ((k * 7919) % 13) as f32 / 13.0;
@@ -412,17 +417,10 @@ mod tests {
         let m = MountConfig::default().validate().unwrap();
         let mut a: std::boxed::Box<Learner<2>> = std::boxed::Box::new(Learner::new(&m));
         for k in 0..1500 {
-            let t = 2.0 * k as f64;
-            a.learn(Frame {
-                gear_time_s: t,
-                interval_s: 2.0,
-                kind: FrameKind::Measured,
-                gear_error_arcsec: (t * 0.02).sin() as f32,
-                applied_arcsec: 0.0,
-                // Anti-correlated pulses: a share is earned.
-                pulse_arcsec: if k % 2 == 0 { 0.2 } else { -0.2 },
-                filled: false,
-            });
+            let error = (2.0 * k as f64 * 0.02).sin() as f32;
+            // Anti-correlated pulses: a share is earned.
+            let pulse = if k % 2 == 0 { 0.2 } else { -0.2 };
+            a.learn(measured(k, error, pulse));
         }
         let share = a.pulse_share();
         assert!(share < 0.5, "{share}");
@@ -499,15 +497,7 @@ mod tests {
     fn an_absurd_observation_is_not_learned() {
         let m = MountConfig::default().validate().unwrap();
         let mut l: std::boxed::Box<Learner<1>> = std::boxed::Box::new(Learner::new(&m));
-        let frame = |k: u32, error: f32| Frame {
-            gear_time_s: 2.0 * k as f64,
-            interval_s: 2.0,
-            kind: FrameKind::Measured,
-            gear_error_arcsec: error,
-            applied_arcsec: 0.0,
-            pulse_arcsec: 0.0,
-            filled: false,
-        };
+        let frame = |k: u32, error: f32| measured(k, error, 0.0);
         for k in 0..20 {
             l.learn(frame(k, 0.1));
         }
