@@ -20,8 +20,8 @@
 //!   [`index_offset`]; from park the exact offset).
 //! - The guider locks where the star is at the start of each night (PHD2's
 //!   lock), so that no night starts with a pull to an old lock position.
-//!   Noise-free rows run seed 1; noisy rows are the mean of seeds 1-3
-//!   (`st4_sim::SEEDS`), night 2 with its own noise.
+//!   Every row is the mean of seeds 1-3 (`st4_sim::SEEDS`), each with its
+//!   own night-2 phase and, with noise, night 2 with its own noise.
 
 use crate::cases::Case;
 use crate::st4_sim::{Firmware, Rig, SEEDS};
@@ -170,10 +170,10 @@ fn one_seed(case: &Case, noise_px: f64, seed: u64, start: Night2Start) -> [f64; 
     [first.score(), cold, unknown, index]
 }
 
-/// One row: noise-free runs seed 1, noisy rows the mean over [`SEEDS`].
+/// One row: the mean over [`SEEDS`], each its own night-2 phase (and
+/// noise).
 pub fn row(case: &Case, noise_px: f64, start: Night2Start) -> Row {
-    let seeds: &[u64] = if noise_px > 0.0 { &SEEDS } else { &SEEDS[..1] };
-    let runs: Vec<[f64; 4]> = seeds
+    let runs: Vec<[f64; 4]> = SEEDS
         .par_iter()
         .map(|&seed| one_seed(case, noise_px, seed, start))
         .collect();

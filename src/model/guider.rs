@@ -180,6 +180,8 @@ pub struct Guider<S: Scalar, const N: usize = 2> {
     resume: Option<restore::Resume>,
     /// Restored data waiting for the phase search (`restore`).
     phase_search: Option<restore::PhaseSearch<N>>,
+    /// A restored grid whose spectrum is not read yet (`restore`).
+    spectrum_hold: Option<restore::SpectrumHold>,
 }
 
 // The model-state budget (docs/reference.md, Goals): the board's 128 KiB of
@@ -243,6 +245,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         uninit_field!(slot, faults).write(Faults::default());
         uninit_field!(slot, resume).write(None);
         uninit_field!(slot, phase_search).write(None);
+        uninit_field!(slot, spectrum_hold).write(None);
         // SAFETY: all 26 fields are written.
         unsafe { slot.assume_init_mut() }
     }
@@ -271,6 +274,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         }
         self.resume = None;
         self.phase_search = None;
+        self.spectrum_hold = None;
     }
 
     pub fn config(&self) -> &GuiderConfig<S> {
@@ -620,6 +624,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         }
         if self.config.compute_period
             && timestamp > self.config.periods_for_estimation * self.trackers[0].period_s
+            && !self.spectrum_held()
         {
             if self.peaks_stale {
                 self.peaks_stale = false;

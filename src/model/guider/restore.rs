@@ -49,6 +49,11 @@ const WORM_PHASE_SEARCH_PERIODS: f64 = 0.25;
 /// level are all that is searched, first this early, then until the data
 /// picks the phase clearly (measured on `guide-sim nights`; docs/model.md).
 const STAGE_PHASE_SEARCH_PERIODS: f64 = 0.05;
+/// A stage's phase is first searched once the new data spans this much
+/// of its period: a twentieth of C2's 380 s stage (5 cells) is nearly a
+/// line, and noise-free a sixth of the night-2 phases took the opposite
+/// phase with an F-test passed.
+const STAGE_SEARCH_FRACTION: f64 = 0.15;
 /// Until the new data picks each stage's phase clearly (an F-test at 90 %
 /// against every phase an eighth of a period or more away), the search
 /// waits for more, in steps of [`STAGE_PHASE_SEARCH_STEP_PERIODS`] worm
@@ -66,6 +71,25 @@ const GAP_PHASE_DRIFT: f64 = 5e-4;
 const LEVEL_MAX_VARIANCE: f64 = 100.0;
 /// Measured cells whose level is averaged (a minute of data).
 const LEVEL_CELLS: u32 = 12;
+
+/// Beats between every two stages with weight that a restored grid's data
+/// must span before its spectrum is read again: the Hamming window's main
+/// lobe is two beats either side of a line, and the newest 1,000 cells
+/// (83 min) that a snapshot keeps span 1.6 between C2's 380 s stage and
+/// its 432 s worm. Two lobes that close merge or not by the two lines'
+/// phases, which a restore changes: the stage's line vanished on most
+/// night-2 phases, its gate closed and the octave rule moved it away.
+const HOLD_BEATS: f64 = 2.5;
+
+/// A restored grid whose spectrum is not read: its periods, stages and
+/// gates stay as saved until the data resolves its stages
+/// ([`HOLD_BEATS`]) or fills the grid.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct SpectrumHold {
+    /// Cells without data the placement left between the saved data and
+    /// the new, s: no evidence of any line.
+    gap_s: f64,
+}
 
 /// A restored grid waiting for the first frame.
 #[derive(Clone, Copy, Debug)]
@@ -181,6 +205,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
                 .map(|(g, v)| (S::from_f64(g as f64), S::from_f64(v as f64)));
             self.grid.restore(cells, DARK_VARIANCE);
             self.resume = Some(Resume { grid_zero_s, place });
+            self.spectrum_hold = Some(SpectrumHold { gap_s: 0.0 });
         }
         Ok(())
     }
@@ -213,10 +238,16 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         // frame on: no warm-up (its 20 s of the guider alone were a fifth
         // of the excess over settled of a parked night's first 30 min).
         self.warm_up_frames = 0;
-        let mut at = self.placement(time_s - resume.grid_zero_s, resume.place == Place::Worm);
+        let x = time_s - resume.grid_zero_s;
+        let mut at = self.placement(x, resume.place == Place::Worm);
+        let end = self.grid.open_cell_end();
+        // Placed exactly where the saved clock says, the model continues:
+        // every line keeps its phase, and so does the spectrum.
+        if resume.place == Place::AllStages && at == x {
+            self.spectrum_hold = None;
+        }
         if resume.place == Place::Worm {
             let saved = self.grid.len();
-            let end = self.grid.open_cell_end();
             // With the stages apart, the saved cells go right before the
             // frame (no gap), the worm's share moved to its phase there;
             // the other stages' phases are found by the search.
@@ -229,15 +260,15 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             let completed = libm::floor((at - end) / CELL_S) + 1.0;
             self.phase_search = Some(PhaseSearch {
                 new_from: saved + completed.max(0.0) as usize,
-                wait_periods: if stages.is_some() {
-                    STAGE_PHASE_SEARCH_PERIODS
-                } else {
-                    WORM_PHASE_SEARCH_PERIODS
+                wait_periods: match &stages {
+                    Some(h) => self.first_stage_search(h),
+                    None => WORM_PHASE_SEARCH_PERIODS,
                 },
                 blocks: false,
                 stages: stages.map(|h| (saved, h)),
             });
         }
+        self.hold_over_gap(at - end);
         let periods = self.trackers.map(|t| t.period_s);
         self.kernel = Kernel::new(&periods, &self.fit_gates());
         if let Some(level) = gear.zip(self.mean_from_data(at)).map(|(g, m)| g - m) {
@@ -499,7 +530,51 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         }
         self.grid.shift_gear(0..saved, level);
         self.grid.insert_gap(saved, gap.1, DARK_VARIANCE);
+        self.hold_over_gap(CELL_S * gap.1 as f64);
         true
+    }
+
+    /// Worm periods of new data before the first search for the stages
+    /// fitted apart in `h`: [`STAGE_PHASE_SEARCH_PERIODS`], and at least
+    /// [`STAGE_SEARCH_FRACTION`] of every such stage's own period.
+    fn first_stage_search(&self, h: &Harmonics<N>) -> f64 {
+        let worm = self.trackers[0].period_s;
+        (1..N)
+            .filter(|&s| h.has_stage(s))
+            .map(|s| STAGE_SEARCH_FRACTION * self.trackers[s].period_s / worm)
+            .fold(STAGE_PHASE_SEARCH_PERIODS, f64::max)
+    }
+
+    /// The placement left `gap_s` without data inside the held spectrum.
+    fn hold_over_gap(&mut self, gap_s: f64) {
+        if let Some(hold) = &mut self.spectrum_hold {
+            hold.gap_s += gap_s.max(0.0);
+        }
+    }
+
+    /// Whether the spectrum is not read at this frame: while restored data
+    /// waits for the phase search, and then until the data resolves every
+    /// two stages with weight by [`HOLD_BEATS`] (not counting the
+    /// placement's gap) or fills the grid.
+    pub(super) fn spectrum_held(&mut self) -> bool {
+        if self.phase_search.is_some() {
+            return true;
+        }
+        let Some(hold) = self.spectrum_hold else {
+            return false;
+        };
+        let span = self.grid.len() as f64 * CELL_S - hold.gap_s;
+        let weighs = |s: usize| s == 0 || self.gates[s] > 0.0;
+        let resolved = (0..N).filter(|&i| weighs(i)).all(|i| {
+            (i + 1..N).filter(|&j| weighs(j)).all(|j| {
+                let (a, b) = (self.trackers[i].period_s, self.trackers[j].period_s);
+                span * (1.0 / a - 1.0 / b).abs() >= HOLD_BEATS
+            })
+        });
+        if resolved || self.grid.len() >= GRID_CELLS {
+            self.spectrum_hold = None;
+        }
+        self.spectrum_hold.is_some()
     }
 
     /// How far off a placement is, s²: the stages' phases (weighted by
@@ -746,6 +821,45 @@ mod tests {
         std::println!("steady {steady}, index {rms}");
         // Measured (from the first minute on): steady 0.060, index 0.058.
         assert!(rms < 1.1 * steady, "{rms} vs {steady}");
+    }
+
+    #[test]
+    fn a_stage_the_saved_span_does_not_resolve_keeps_its_period_and_gate() {
+        // C2-like: a 380 s stage beside the 432 s worm, 1.6 cycles apart
+        // over the 83 min a snapshot keeps: their lobes in its spectrum
+        // merge or not by their phases, which the index restore changes.
+        let c2 = |t: f64| 9.0 * libm::sin(TAU * t / 432.0) + 3.9 * libm::sin(TAU * t / 380.0);
+        let config = GuiderConfig {
+            prior_period_s: 432.0,
+            ..GuiderConfig::default()
+        };
+        let mut g = std::boxed::Box::new(Guider::<f32, 2>::new(config));
+        let mut t = 0.0;
+        while t < 10_000.0 {
+            g.observe(t, Some(c2(t)), 0.0, 10.0, 2.0);
+            t += 2.0;
+        }
+        assert!((g.period_s(1) - 380.0).abs() < 5.0 && g.gate(1) == 1.0);
+        let mut buf = [0u8; SNAPSHOT_MAX];
+        let n = g.snapshot(&mut buf).unwrap();
+        let snapshot = Snapshot::parse(&buf[..n], 2).unwrap();
+        for phase in [20_000.0, 30_000.0, 40_000.0, 50_000.0] {
+            let mut r = std::boxed::Box::new(Guider::<f32, 2>::new(config));
+            let end = 10_000.0;
+            let index = Phase::Worm {
+                gear_time_offset_s: end + libm::fmod(phase - end, 432.0),
+            };
+            r.restore(&snapshot, index).unwrap();
+            let mut t = 0.0;
+            while t < 1800.0 {
+                r.observe(t, Some(c2(t + phase) + 5.0), 0.0, 10.0, 2.0);
+                t += 2.0;
+            }
+            // 30 min on, the data spans 2.2 beats: still held, the stage
+            // as saved.
+            assert!(r.spectrum_hold.is_some(), "{phase}");
+            assert_eq!((r.period_s(1), r.gate(1)), (g.period_s(1), g.gate(1)));
+        }
     }
 
     /// A new guider holding the learned model, restored with its phase

@@ -34,9 +34,12 @@ const PHASE_STEPS: usize = 128;
 /// 5 s).
 const SHORTEST_HARMONIC_S: f64 = 4.0 * CELL_S;
 /// Cycles over the saved span by which two harmonics must differ to be
-/// told apart (C2's 380 s stage and 432 s worm: 1.6, left to the placement
-/// search; C5's 155 s stage and the worm's third: 2.4).
-const SEPARATION: f64 = 2.0;
+/// told apart: 1.5 cycles apart, two sinusoids over the span correlate by
+/// at most 0.21 (|sin 1.5π| / 1.5π). C2's 380 s stage and 432 s worm
+/// differ by 1.6 (at 2 it was left to the placement search, whose shifts
+/// of whole worm periods put it up to 26 s off its phase); C5's 155 s
+/// stage and the worm's third by 2.4.
+const SEPARATION: f64 = 1.5;
 /// Added to the normal equations' diagonal, relative to the cell count:
 /// far below the data, it only keeps a term the cells do not determine
 /// from making them singular.
@@ -470,8 +473,10 @@ mod tests {
         // fourth the worm's sixth.
         let c3 = fitted_flags([432.0, 288.0]);
         assert_eq!(c3[1], [true, false, true, false]);
-        // C2: 380 s and 432 s differ by 1.6 cycles over the 83 min saved.
-        assert_eq!(fitted_flags([432.0, 380.0])[1], [false; HARMONICS]);
+        // C2: 380 s and 432 s differ by 1.6 cycles over the 83 min saved,
+        // 400 s and 432 s by 0.9.
+        assert!(fitted_flags([432.0, 380.0])[1][0]);
+        assert_eq!(fitted_flags([432.0, 400.0])[1], [false; HARMONICS]);
         // A stage at the worm's harmonic (C4's 216 s) is the worm's.
         assert_eq!(fitted_flags([432.0, 216.0])[1], [false; HARMONICS]);
         assert!(!fit([432.0, 216.0]).unwrap().has_stage(1));
