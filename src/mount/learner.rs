@@ -9,7 +9,7 @@
 
 use core::mem::MaybeUninit;
 
-use crate::model::guider::{Faults, Guider, GuiderConfig, DITHER_FRAMES};
+use crate::model::guider::{Faults, Guider, GuiderConfig, DITHER_FRAMES, MAX_TIME_STEP_S};
 use crate::model::in_place::{build, uninit_field};
 use crate::model::numeric::clamp;
 use crate::model::snapshot::{
@@ -330,10 +330,18 @@ impl<const N: usize> Learner<N> {
         if pulse.is_some() {
             self.pulse_weight.frame(self.damping.swing());
         }
+        // In effect for three frames: of the cadence, or of the guider's
+        // own spacing where longer, up to the longest step the model
+        // predicts over. A guider that skips exposures below its min move
+        // spaces the frames by its own measured cadence (`framer`); a
+        // horizon from the expected interval above (at most twice the
+        // configured cadence) ran out before nearly every frame there
+        // (docs/results.md, "The corners of the ranges").
+        let spacing = clamp(d, cadence, MAX_TIME_STEP_S.max(cadence));
         FeedForward {
             rate_arcsec_per_s: rate,
             from_gear_s: t,
-            until_gear_s: t + 3.0 * next.max(cadence),
+            until_gear_s: t + 3.0 * spacing,
             pulse_share: self.pulse_weight.share(pulse_share),
         }
     }
@@ -387,6 +395,27 @@ mod tests {
         });
         let c = l.counters();
         assert_eq!((c.frames, c.learned, c.dithers), (51, 50, 1));
+    }
+
+    #[test]
+    fn the_feed_forward_lasts_three_of_the_guiders_frames() {
+        let m = MountConfig::default().validate().unwrap();
+        let cadence = m.config().guide_cadence_s as f64;
+        let mut l: std::boxed::Box<Learner<1>> = std::boxed::Box::new(Learner::new(&m));
+        let mut horizon = |t: f64| {
+            let ff = l.learn(Frame {
+                gear_time_s: t,
+                ..measured(0, 0.0, 0.0)
+            });
+            ff.until_gear_s - t
+        };
+        assert_eq!(horizon(0.0), 3.0 * cadence);
+        // Frames closer than the cadence: still three cadences.
+        assert_eq!(horizon(0.5), 3.0 * cadence);
+        // A guider that spaces its frames 10 s apart: 30 s.
+        assert_eq!(horizon(10.5), 30.0);
+        // After a long silence, at most three of the longest steps.
+        assert_eq!(horizon(1000.0), 3.0 * MAX_TIME_STEP_S);
     }
 
     /// A pulse far beyond the recent ones is a step of the star, taken out

@@ -50,9 +50,8 @@ const WORM_PHASE_SEARCH_PERIODS: f64 = 0.25;
 /// picks the phase clearly (measured on `guide-sim nights`; docs/model.md).
 const STAGE_PHASE_SEARCH_PERIODS: f64 = 0.05;
 /// A stage's phase is first searched once the new data spans this much
-/// of its period: a twentieth of C2's 380 s stage (5 cells) is nearly a
-/// line, and noise-free a sixth of the night-2 phases took the opposite
-/// phase with an F-test passed.
+/// of its period too: a twentieth of C2's 380 s stage (5 cells) is nearly
+/// a line, and the F-test passed phases far off (docs/model.md).
 const STAGE_SEARCH_FRACTION: f64 = 0.15;
 /// Until the new data picks each stage's phase clearly (an F-test at 90 %
 /// against every phase an eighth of a period or more away), the search
