@@ -22,6 +22,7 @@ use crate::model::gp::grid::{CELL_S, GRID_CELLS};
 use crate::model::gp::kernel::Kernel;
 use crate::model::numeric::scalar::Scalar;
 use crate::model::snapshot::{encode, Phase, SavedStage, Snapshot, SnapshotError, SNAPSHOT_CELLS};
+use crate::model::spectral::discovery::beats;
 use crate::model::spectral::period::PeriodTracker;
 
 mod harmonics;
@@ -566,8 +567,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         let weighs = |s: usize| s == 0 || self.gates[s] > 0.0;
         let resolved = (0..N).filter(|&i| weighs(i)).all(|i| {
             (i + 1..N).filter(|&j| weighs(j)).all(|j| {
-                let (a, b) = (self.trackers[i].period_s, self.trackers[j].period_s);
-                span * (1.0 / a - 1.0 / b).abs() >= HOLD_BEATS
+                beats(span, self.trackers[i].period_s, self.trackers[j].period_s) >= HOLD_BEATS
             })
         });
         if resolved || self.grid.len() >= GRID_CELLS {

@@ -76,6 +76,12 @@ pub fn gate(ratio: f64) -> f64 {
     ((ratio - GATE_OFF) / (GATE_FULL - GATE_OFF)).clamp(0.0, 1.0)
 }
 
+/// Beat periods between lines at periods `a` and `b` that `span_s` of
+/// data spans: how far apart the two lie in the spectrum's resolution.
+pub fn beats(span_s: f64, a: f64, b: f64) -> f64 {
+    span_s * (1.0 / a - 1.0 / b).abs()
+}
+
 /// Whether `span_s` of data leaves a peak at `period` unresolved from the
 /// `k`-th multiple or division (`harmonic`) of a known period `p` or of its
 /// line `line` as measured in this spectrum. Both: a tracked period lags
@@ -91,9 +97,9 @@ fn unresolved(
     harmonic: impl Fn(f64, f64) -> f64,
     span_s: f64,
 ) -> bool {
-    let beats = |centre: f64| span_s * (1.0 / period - 1.0 / centre).abs();
     let kf = k as f64;
-    k == 1 || beats(harmonic(p, kf)) < HARMONIC_BEATS || beats(harmonic(line, kf)) < HARMONIC_BEATS
+    let near = |centre: f64| beats(span_s, period, centre) < HARMONIC_BEATS;
+    k == 1 || near(harmonic(p, kf)) || near(harmonic(line, kf))
 }
 
 fn multiple(p: f64, k: f64) -> f64 {
@@ -137,7 +143,7 @@ pub fn commensurate(period: f64, known: &[f64], lines: &[f64], span_s: f64) -> b
 pub fn resolved(period: f64, known: &[f64], span_s: f64) -> bool {
     known
         .iter()
-        .all(|&p| span_s * (1.0 / period - 1.0 / p).abs() >= RESOLUTION_BEATS)
+        .all(|&p| beats(span_s, period, p) >= RESOLUTION_BEATS)
 }
 
 /// Bins (fractional) of the band `width` either side of `period`, in
