@@ -56,11 +56,8 @@ const STAGE_PHASE_SEARCH_PERIODS: f64 = 0.05;
 const STAGE_SEARCH_FRACTION: f64 = 0.15;
 /// Until the new data picks each stage's phase clearly (an F-test at 90 %
 /// against every phase an eighth of a period or more away), the search
-/// waits for more, in steps of [`STAGE_PHASE_SEARCH_STEP_PERIODS`] worm
-/// periods up to [`STAGE_PHASE_SEARCH_MAX_PERIODS`]. Noise-free data picks
-/// every stage at the first try (measured on `guide-sim nights`,
-/// docs/model.md).
-const STAGE_PHASE_SEARCH_STEP_PERIODS: f64 = 0.05;
+/// runs again at every new cell, up to this many worm periods of new data
+/// (measured on `guide-sim nights`, docs/model.md).
 const STAGE_PHASE_SEARCH_MAX_PERIODS: f64 = 0.5;
 /// Phase error per second of gap between the saved data and the first new
 /// frame, s/s: the relative error of a tracked period (C5 after 8,000 s in
@@ -422,15 +419,15 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             Some((saved, h)) => {
                 let (phases, level) = self.find_stage_phases(search.new_from, &h);
                 let placed = phases.iter().flatten().all(|p| p.is_clear());
-                // The last wait: the next would pass the most (half a step
-                // of slack, as the waits add up in floating point).
-                let last = search.wait_periods + 0.5 * STAGE_PHASE_SEARCH_STEP_PERIODS
-                    >= STAGE_PHASE_SEARCH_MAX_PERIODS;
+                // The last wait: the next cell would pass the most.
+                let last = new_cells as f64 + 1.0 > STAGE_PHASE_SEARCH_MAX_PERIODS * worm_cells;
                 if placed || full || last {
                     self.put_back_stages(saved, &h, &phases, level);
                 } else {
+                    // Again at the next cell (half a cell of slack, as the
+                    // wait is in worm periods).
                     self.phase_search = Some(PhaseSearch {
-                        wait_periods: search.wait_periods + STAGE_PHASE_SEARCH_STEP_PERIODS,
+                        wait_periods: (new_cells as f64 + 0.5) / worm_cells,
                         ..search
                     });
                 }
