@@ -85,6 +85,13 @@ pub struct GuiderConfig<S> {
     /// The user's estimate of the period of stages 1, 2, 3 (seconds), if
     /// known: the search for that stage is then confined to a band around it.
     pub stage_seeds_s: [Option<f64>; MAX_SEEDED_STAGES],
+    /// Read the prediction's window [`Grid::lag_s`] later, at the gear
+    /// error's own time rather than where the grid's averaging puts it:
+    /// for a feed-forward applied as a rate over the coming interval (the
+    /// mount's). False keeps the reference's timing, which a PC guider's
+    /// correction of its next frame measures better (INDIGO's traces, the
+    /// PHD2 logs; docs/model.md, "Stage discovery", item 6).
+    pub prediction_at_gear_time: bool,
 }
 
 /// Stages beyond the worm that can be given a seed period.
@@ -102,6 +109,7 @@ impl<S: Scalar> Default for GuiderConfig<S> {
             periods_for_estimation: 2.0,
             max_input: S::from_f64(100.0),
             stage_seeds_s: [None; MAX_SEEDED_STAGES],
+            prediction_at_gear_time: false,
         }
     }
 }
@@ -656,7 +664,9 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     }
 
     /// Predicted change of the gear error from the end of the last
-    /// prediction to `now + dt` (s since start, plus the dither offset).
+    /// prediction to `now + dt` (s since start, plus the dither offset),
+    /// on the grid's time axis (read the grid's lag later with
+    /// [`GuiderConfig::prediction_at_gear_time`]).
     fn predict(&mut self, now: f64, dt: f64) -> S {
         let x1 = now + dt + self.dither_offset;
         let x0 = self.last_prediction_end.unwrap_or(now);
@@ -664,8 +674,13 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         let Some(origin) = self.grid.origin() else {
             return S::ZERO;
         };
-        self.gp
-            .predict_change(&self.grid, &self.kernel, x0 - origin, x1 - origin)
+        let lag = if self.config.prediction_at_gear_time {
+            self.grid.lag_s()
+        } else {
+            0.0
+        };
+        let (from, to) = (x0 - origin + lag, x1 - origin + lag);
+        self.gp.predict_change(&self.grid, &self.kernel, from, to)
     }
 
     /// The least settled period among the stages that carry weight.

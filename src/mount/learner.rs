@@ -130,6 +130,8 @@ impl<const N: usize> Learner<N> {
         GuiderConfig {
             prior_period_s: c.worm_period_s as f64,
             control_gain: c.guider_aggressiveness,
+            // The feed-forward is a rate over the coming interval.
+            prediction_at_gear_time: true,
             ..GuiderConfig::default()
         }
     }

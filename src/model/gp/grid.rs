@@ -15,6 +15,15 @@
 //! - the first sample opens a cell centred at -2.5 s whose average is half the
 //!   sample (the integration starts from zero at -5 s).
 //!
+//! The first quirk weighs the past: a cell's average stands for the gear
+//! error some time before the cell's centre (the anchor carries half the
+//! weight, and each anchor is interpolated between the previous one and a
+//! sample). The grid tracks where in time each cell's weights sit and
+//! keeps the running mean of that lag ([`Grid::lag_s`]); the mount's
+//! feed-forward predicts that much later on the grid's time axis
+//! (`GuiderConfig::prediction_at_gear_time`), a PC guider's prediction
+//! keeps the reference's timing.
+//!
 //! Time bookkeeping is `f64`: O(1) work per frame, and it keeps sub-ms
 //! precision over a night also where the model runs in `f32`.
 
@@ -27,6 +36,8 @@ use crate::model::numeric::scalar::Scalar;
 pub const GRID_CELLS: usize = 2048;
 /// Width of a cell in seconds.
 pub const CELL_S: f64 = 5.0;
+/// Cells the averaging's lag is a running mean over (about 5 minutes).
+pub const LAG_CELLS: u32 = 64;
 
 /// Outcome of adding a sample.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -41,7 +52,7 @@ pub enum Push {
 }
 
 /// Ring of completed cells plus the running state of the open cell.
-/// RAM: 2 x 2048 scalars (16 KiB in `f32`) plus 64 bytes.
+/// RAM: 2 x 2048 scalars (16 KiB in `f32`) plus 112 bytes.
 pub struct Grid<S> {
     gear: [S; GRID_CELLS],
     variance: [S; GRID_CELLS],
@@ -60,6 +71,18 @@ pub struct Grid<S> {
     anchor_variance: f64,
     gear_sum: f64,
     variance_sum: f64,
+    /// The time the anchor's value stands for (relative to `origin`): the
+    /// reference interpolates a cell's end between the previous anchor and
+    /// the new sample, so an anchor stands for a time before the cell's
+    /// start.
+    anchor_time: f64,
+    /// The open cell's weights times the times their values stand for:
+    /// where in time its average sits.
+    time_sum: f64,
+    /// Running mean over the recent cells of how far each cell's average
+    /// sits before the cell's centre, s, and the cells it has seen.
+    lag_s: f64,
+    lag_cells: u32,
 }
 
 impl<S: Scalar> Grid<S> {
@@ -82,7 +105,11 @@ impl<S: Scalar> Grid<S> {
         uninit_field!(slot, anchor_variance).write(0.0);
         uninit_field!(slot, gear_sum).write(0.0);
         uninit_field!(slot, variance_sum).write(0.0);
-        // SAFETY: all 13 fields are written.
+        uninit_field!(slot, anchor_time).write(-CELL_S);
+        uninit_field!(slot, time_sum).write(0.0);
+        uninit_field!(slot, lag_s).write(0.0);
+        uninit_field!(slot, lag_cells).write(0);
+        // SAFETY: all 17 fields are written.
         unsafe { slot.assume_init_mut() }
     }
 
@@ -143,20 +170,26 @@ impl<S: Scalar> Grid<S> {
             let w = 0.5 * (t - self.last_time);
             self.gear_sum += w * (self.anchor_gear + gear);
             self.variance_sum += w * (self.anchor_variance + variance);
+            self.time_sum += w * (self.anchor_time + t);
             self.last_time = t;
         } else {
             while t >= self.cell_end {
                 let p = (self.cell_end - self.last_time) / (t - self.last_time);
                 let g = p * gear + (1.0 - p) * self.anchor_gear;
                 let v = p * variance + (1.0 - p) * self.anchor_variance;
+                let g_time = p * t + (1.0 - p) * self.anchor_time;
                 let w = 0.5 * (self.cell_end - self.last_time);
                 self.gear_sum += w * (self.anchor_gear + g);
                 self.variance_sum += w * (self.anchor_variance + v);
+                self.time_sum += w * (self.anchor_time + g_time);
                 self.emit(self.gear_sum / CELL_S, self.variance_sum / CELL_S);
+                self.note_lag(self.cell_end - 0.5 * CELL_S - self.time_sum / CELL_S);
+                self.time_sum = 0.0;
                 new_cells += 1;
                 self.last_time = self.cell_end;
                 self.anchor_gear = g;
                 self.anchor_variance = v;
+                self.anchor_time = g_time;
                 self.cell_end += CELL_S;
                 self.gear_sum = 0.0;
                 self.variance_sum = 0.0;
@@ -182,6 +215,8 @@ impl<S: Scalar> Grid<S> {
         self.started = true;
         self.cell_end = CELL_S * self.len as f64;
         self.last_time = self.cell_end - CELL_S;
+        // The anchor is the last cell's average: its centre's time.
+        self.anchor_time = self.last_time - 0.5 * CELL_S;
         self.anchor_variance = anchor_variance;
     }
 
@@ -254,9 +289,29 @@ impl<S: Scalar> Grid<S> {
         self.len += count;
         self.emitted += count as u64;
         let shift = CELL_S * count as f64;
+        // The open cell's times so far move too: their weights sum to the
+        // time it has covered.
+        self.time_sum += shift * (self.last_time - (self.cell_end - CELL_S));
         self.origin -= shift;
         self.cell_end += shift;
         self.last_time += shift;
+        self.anchor_time += shift;
+    }
+
+    /// How far before its centre a cell's average sits, s: the mean over
+    /// the last [`LAG_CELLS`] cells (0 before any). The reference's
+    /// averaging weighs a cell's start by half (the anchor), so a model
+    /// fitted to the cells sees the gear error about this much late.
+    pub fn lag_s(&self) -> f64 {
+        self.lag_s
+    }
+
+    fn note_lag(&mut self, lag: f64) {
+        if !lag.is_finite() {
+            return;
+        }
+        self.lag_cells = self.lag_cells.saturating_add(1);
+        self.lag_s += (lag - self.lag_s) / self.lag_cells.min(LAG_CELLS) as f64;
     }
 
     fn emit(&mut self, gear: f64, variance: f64) {
@@ -296,6 +351,50 @@ mod tests {
             assert_eq!(g.cell_time(i), 5.0 * i as f64 - 2.5);
         }
         assert_eq!(g.len(), 40); // samples up to 198 s complete cells ending at 0..195
+    }
+
+    /// On a gear error that grows linearly with time a cell's average is
+    /// the error at the time its weights sit: `lag_s` is the running mean
+    /// of how far that is before the cell's centre. Half the weight is on
+    /// the anchor, which stands for a time at or before the cell's start,
+    /// the more so the closer the last sample before a cell's end lies to
+    /// it: samples that fall on the cells' ends lag least (1.3 s at 2 s),
+    /// a guider's cadence a little off the cells' most (2.8 s at 2.03 s).
+    #[test]
+    fn the_lag_is_where_a_cells_average_sits() {
+        for (spacing, low, high) in [
+            (0.01, 1.2, 1.3),
+            (0.5, 1.0, 1.25),
+            (1.03, 3.3, 3.45),
+            (2.0, 1.2, 1.4),
+            (2.03, 2.7, 2.9),
+            (4.0, 0.7, 0.9),
+            // Cells with no sample of their own: none.
+            (8.0, -1e-9, 1e-9),
+        ] {
+            let mut g: Grid<f64> = Grid::new();
+            let mut want = 0.0;
+            let mut cells = 0u32;
+            for i in 0..(2_000.0 / spacing) as u32 {
+                let t = spacing * i as f64;
+                if let Push::Accepted { new_cells } = g.push(t, t, 1.0) {
+                    for k in g.len() - new_cells as usize..g.len() {
+                        // The first cell holds half a sample (the
+                        // reference's start), no time.
+                        let lag = if g.cell_time(k) < 0.0 {
+                            0.0
+                        } else {
+                            g.cell_time(k) - g.cell(k).0
+                        };
+                        cells += 1;
+                        want += (lag - want) / cells.min(LAG_CELLS) as f64;
+                    }
+                }
+            }
+            let lag = g.lag_s();
+            assert!((lag - want).abs() < 1e-6, "{spacing}: {lag} vs {want}");
+            assert!(lag > low && lag < high, "{spacing}: {lag}");
+        }
     }
 
     #[test]
@@ -353,6 +452,29 @@ mod tests {
         assert_eq!(
             g.cell_time(g.len() - 1) + g.origin().unwrap(),
             newest_time + 5.0
+        );
+    }
+
+    /// A gap moves the grid's time axis under the open cell: the anchor's
+    /// time moves with it, and the lag stays where the cadence puts it.
+    #[test]
+    fn a_gap_keeps_the_lag() {
+        let mut g: Grid<f64> = Grid::new();
+        let mut t = 0.0;
+        while t < 1_000.0 {
+            g.push(t, t, 1.0);
+            t += 2.03;
+        }
+        let before = g.lag_s();
+        g.insert_gap(100, 100, 1e4);
+        while t < 1_100.0 {
+            g.push(t, t, 1.0);
+            t += 2.03;
+        }
+        assert!(
+            (g.lag_s() - before).abs() < 0.2,
+            "{before} -> {}",
+            g.lag_s()
         );
     }
 
