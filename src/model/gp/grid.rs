@@ -337,6 +337,16 @@ impl<S: Scalar> Default for Grid<S> {
 mod tests {
     use super::*;
 
+    /// Samples of a gear error equal to the time, every `step` s from `t`
+    /// until `until`; returns the time of the next.
+    fn ramp(g: &mut Grid<f64>, mut t: f64, until: f64, step: f64) -> f64 {
+        while t < until {
+            g.push(t, t, 1.0);
+            t += step;
+        }
+        t
+    }
+
     #[test]
     fn constant_signal_gives_constant_cells() {
         let mut g: Grid<f64> = Grid::new();
@@ -410,11 +420,7 @@ mod tests {
     #[test]
     fn ring_keeps_the_newest_cells() {
         let mut g: Grid<f64> = Grid::new();
-        let mut t = 0.0;
-        while t < 12_000.0 {
-            g.push(t, t, 1.0);
-            t += 2.0;
-        }
+        ramp(&mut g, 0.0, 12_000.0, 2.0);
         assert_eq!(g.len(), GRID_CELLS);
         // Newest cell: ends at the last boundary passed, holds ~its centre.
         let last = g.len() - 1;
@@ -426,11 +432,7 @@ mod tests {
     #[test]
     fn a_gap_moves_the_older_cells_back_and_keeps_the_newer() {
         let mut g: Grid<f64> = Grid::new();
-        let mut t = 0.0;
-        while t < 1000.0 {
-            g.push(t, t, 1.0);
-            t += 2.0;
-        }
+        let t = ramp(&mut g, 0.0, 1000.0, 2.0);
         let (len, newest_time) = (g.len(), g.cell_time(g.len() - 1) + g.origin().unwrap());
         let old_time = g.cell_time(10) + g.origin().unwrap();
         g.insert_gap(100, 7, 1e4);
@@ -460,17 +462,10 @@ mod tests {
     #[test]
     fn a_gap_keeps_the_lag() {
         let mut g: Grid<f64> = Grid::new();
-        let mut t = 0.0;
-        while t < 1_000.0 {
-            g.push(t, t, 1.0);
-            t += 2.03;
-        }
+        let t = ramp(&mut g, 0.0, 1_000.0, 2.03);
         let before = g.lag_s();
         g.insert_gap(100, 100, 1e4);
-        while t < 1_100.0 {
-            g.push(t, t, 1.0);
-            t += 2.03;
-        }
+        ramp(&mut g, t, 1_100.0, 2.03);
         assert!(
             (g.lag_s() - before).abs() < 0.2,
             "{before} -> {}",
