@@ -498,6 +498,7 @@ impl Rig {
                 ra: self.ra.steps(),
                 dec: self.dec.steps(),
             },
+            port: 0,
         };
         port.feed(bytes, self.now_us, &mut mount, out);
     }

@@ -26,6 +26,7 @@ use crate::mount::frame::{FeedForward, Frame, FrameKind};
 use crate::mount::guiding::GuidingCounters;
 use crate::mount::learner::{Learner, LearnerCounters};
 use crate::mount::st4::St4Counters;
+use crate::persist::StoreCounters;
 use crate::port::coords::{Dec, Equatorial, Ra};
 use crate::port::mount_port::{
     Axis, Counter, CounterGroup, GuidePulse, Identity, Learning, Line, ManualRate, ModelOrigin,
@@ -155,15 +156,39 @@ impl LearnedFrame {
 /// What the port asked of the store, for the caller that owns it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum StoreRequest {
-    /// Save this configuration (`:~KW#`); the next start uses it.
-    Config(MountConfig),
-    /// Save the learned model now (`:~W#`).
-    Model,
+    /// Save this configuration (`:~KW#` on port `port`, whose reply waits
+    /// for the outcome); the next start uses it.
+    Config { config: MountConfig, port: usize },
+    /// Save the learned model now (`:~W#` on port `port`, as above).
+    Model { port: usize },
     /// Parked with the axes at these counts (`:hP#`): save them and the
     /// model.
     Park(StepCounts),
     /// Unparked (`:hR#`): the saved counts no longer say where the worm is.
     Unpark,
+}
+
+impl StoreRequest {
+    /// The port whose reply waits for this request's outcome.
+    pub fn reply_to(&self) -> Option<usize> {
+        match *self {
+            StoreRequest::Config { port, .. } | StoreRequest::Model { port } => Some(port),
+            StoreRequest::Park(_) | StoreRequest::Unpark => None,
+        }
+    }
+}
+
+/// What became of a store request, for the caller that serves the ports:
+/// the reply of the port that asked ([`Interpreter::store_done`]) and the
+/// store's counters for the port's queries.
+///
+/// [`Interpreter::store_done`]: crate::port::Interpreter::store_done
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StoreOutcome {
+    pub reply_to: Option<usize>,
+    /// Saved, and read back as written.
+    pub saved: bool,
+    pub counters: StoreCounters,
 }
 
 /// Store requests waiting for the caller: a burst of commands fits.
@@ -200,6 +225,8 @@ pub struct PortState {
     pub parked: bool,
     /// Where the model came from at start-up (the caller's to set).
     pub model_origin: ModelOrigin,
+    /// The store's counters, as the last [`StoreOutcome`] brought them.
+    pub store_counters: StoreCounters,
 }
 
 impl PortState {
@@ -219,6 +246,7 @@ impl PortState {
             requests: Deque::new(),
             parked: false,
             model_origin: ModelOrigin::Cold,
+            store_counters: StoreCounters::default(),
         }
     }
 
@@ -279,6 +307,8 @@ pub struct PortMount<'a> {
     pub state: &'a mut PortState,
     pub now_us: u64,
     pub steps: StepCounts,
+    /// The port being served (the index its store outcomes come back to).
+    pub port: usize,
 }
 
 fn st4_counter(c: &St4Counters, index: usize) -> Option<(&'static str, u32)> {
@@ -327,8 +357,14 @@ fn learner_counter(c: &LearnerCounters, index: usize) -> Option<(&'static str, u
     })
 }
 
-/// The faults group: edges the ST4 queue lost, then the model's faults.
-fn fault_counter(lost_edges: u32, f: &Faults, index: usize) -> Option<(&'static str, u32)> {
+/// The faults group: edges the ST4 queue lost, the model's faults, then
+/// the store's.
+fn fault_counter(
+    lost_edges: u32,
+    f: &Faults,
+    store: &StoreCounters,
+    index: usize,
+) -> Option<(&'static str, u32)> {
     Some(match index {
         0 => ("lost_edges", lost_edges),
         1 => ("model_bad_time", f.bad_time),
@@ -336,6 +372,8 @@ fn fault_counter(lost_edges: u32, f: &Faults, index: usize) -> Option<(&'static 
         3 => ("model_inference_failures", f.inference_failures),
         4 => ("model_grid_restarts", f.grid_restarts),
         5 => ("model_bad_dithers", f.bad_dithers),
+        6 => ("store_rewrites", store.rewrites),
+        7 => ("store_unverified", store.unverified),
         _ => return None,
     })
 }
@@ -424,9 +462,12 @@ impl MountPort for PortMount<'_> {
                 }
             }
             CounterGroup::Learner => learner_counter(&self.state.learner.counters, index)?,
-            CounterGroup::Faults => {
-                fault_counter(self.control.lost_edges(), &self.state.learner.faults, index)?
-            }
+            CounterGroup::Faults => fault_counter(
+                self.control.lost_edges(),
+                &self.state.learner.faults,
+                &self.state.store_counters,
+                index,
+            )?,
         };
         Some(Counter { name, value })
     }
@@ -457,7 +498,10 @@ impl MountPort for PortMount<'_> {
 
     fn save_config(&mut self) -> bool {
         let config = self.state.pending;
-        self.state.ask_store(StoreRequest::Config(config))
+        self.state.ask_store(StoreRequest::Config {
+            config,
+            port: self.port,
+        })
     }
 
     fn park(&mut self) {
@@ -479,6 +523,7 @@ impl MountPort for PortMount<'_> {
     }
 
     fn save_model(&mut self) -> bool {
-        self.state.ask_store(StoreRequest::Model)
+        self.state
+            .ask_store(StoreRequest::Model { port: self.port })
     }
 }

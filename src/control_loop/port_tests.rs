@@ -9,6 +9,7 @@ use crate::mount::config::MountConfig;
 use crate::mount::frame::FrameKind;
 use crate::mount::st4::Line;
 use crate::port::coords::{Dec, Equatorial, Ra};
+use crate::port::interpreter::STORE_REPLY_TIMEOUT_US;
 use crate::port::mount_port::{Identity, ModelOrigin, StepCounts};
 use crate::port::{Interpreter, ReplySink};
 use crate::safety::reset_cause::ResetCause;
@@ -133,8 +134,16 @@ impl Rig {
             state: &mut self.state,
             now_us: self.t,
             steps,
+            port: 0,
         };
         self.port.feed(cmd.as_bytes(), self.t, &mut mount, &mut out);
+        out.0
+    }
+
+    /// The store's outcome for the port; the reply it sends.
+    fn stored(&mut self, saved: bool) -> String {
+        let mut out = Text::default();
+        self.port.store_done(saved, &mut out);
         out.0
     }
 }
@@ -353,7 +362,7 @@ fn the_port_reads_the_loop_and_the_learner_summary() {
     assert_eq!(
         r.ask(":~Cf#"),
         "lost_edges=0 model_bad_time=0 model_bad_input=0 model_inference_failures=2 \
-         model_grid_restarts=0 model_bad_dithers=0#"
+         model_grid_restarts=0 model_bad_dithers=0 store_rewrites=0 store_unverified=0#"
     );
     assert_eq!(r.ask(":~F0#:GU#"), "1Np/#");
     assert!(!r.lp.feed_forward_on());
@@ -363,7 +372,9 @@ fn the_port_reads_the_loop_and_the_learner_summary() {
     assert!(!r.state.take_reset_request());
     assert_eq!(r.ask(":~V#"), "version=0.1.0 reset=reset_pin#");
     // The pending configuration starts as the running one; a save is
-    // refused without a store, and taken once with one.
+    // refused without a store. With one, each save's reply waits for the
+    // store's outcome: `1` saved and read back, `0` not; one at a time per
+    // port, and `0` if no outcome comes in time.
     assert_eq!(
         r.ask(":~Kguider_aggressiveness#"),
         "guider_aggressiveness=0.7#"
@@ -372,15 +383,28 @@ fn the_port_reads_the_loop_and_the_learner_summary() {
     assert_eq!(r.ask(":~KW#:~W#"), "00");
     assert_eq!(r.state.take_store_request(), None);
     r.state.store = true;
-    assert_eq!(r.ask(":~KW#:~W#"), "11");
-    let Some(StoreRequest::Config(saved)) = r.state.take_store_request() else {
-        panic!("a configuration to save");
+    assert_eq!(r.ask(":~KW#"), "");
+    let Some(StoreRequest::Config { config, port: 0 }) = r.state.take_store_request() else {
+        panic!("a configuration to save, for port 0");
     };
-    assert_eq!(saved.guider_aggressiveness, 0.5);
-    assert_eq!(r.state.take_store_request(), Some(StoreRequest::Model));
+    assert_eq!(config.guider_aggressiveness, 0.5);
+    assert_eq!(r.ask(":~W#"), "0");
     assert_eq!(r.state.take_store_request(), None);
-    // A burst beyond the queue: the rest refused.
-    assert_eq!(r.ask(":~W#:~W#:~W#:~W#:~W#"), "11110");
+    assert_eq!(r.stored(true), "1");
+    assert_eq!(r.stored(true), "");
+    assert_eq!(r.ask(":~W#"), "");
+    assert_eq!(
+        r.state.take_store_request(),
+        Some(StoreRequest::Model { port: 0 })
+    );
+    assert_eq!(r.stored(false), "0");
+    assert_eq!(r.ask(":~W#"), "");
+    r.t += STORE_REPLY_TIMEOUT_US - 1;
+    assert_eq!(r.ask(""), "");
+    r.t += 1;
+    assert_eq!(r.ask(""), "0");
+    assert_eq!(r.stored(true), "");
+    assert!(r.ask(":~Cp#").ends_with(" store_timeouts=1#"));
     // The loop runs on with what it started with.
     assert_eq!(r.mount.config().guider_aggressiveness, 0.7);
 }

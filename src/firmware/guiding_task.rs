@@ -18,7 +18,9 @@ use embassy_time::{Instant, Timer};
 
 use hal::reset::Watchdog;
 use hal::st4::{PinEdge, St4Edges};
-use mkgp_mount::control_loop::port_mount::{LearnedFrame, PortMount, PortState, StoreRequest};
+use mkgp_mount::control_loop::port_mount::{
+    LearnedFrame, PortMount, PortState, StoreOutcome, StoreRequest,
+};
 use mkgp_mount::control_loop::st4_feed::{EdgeQueue, EdgeSource, RawEdge};
 use mkgp_mount::control_loop::storm::StormGuard;
 use mkgp_mount::control_loop::{ControlLoop, FrameRecord};
@@ -66,6 +68,10 @@ pub static RESET_MODEL: Signal<CriticalSectionRawMutex, ()> = Signal::new();
 /// What the ports asked of the store, for the learning task (which owns
 /// it).
 pub static STORE_REQUESTS: Channel<CriticalSectionRawMutex, StoreRequest, 4> = Channel::new();
+
+/// What became of the store's saves, from the learning task: the reply of
+/// the port that asked, the store's counters.
+pub static STORE_OUTCOMES: Channel<CriticalSectionRawMutex, StoreOutcome, 8> = Channel::new();
 
 /// Where the model came from, set by the learning task when it restores
 /// it (at start-up, or at the worm index's first pass).
@@ -185,14 +191,25 @@ impl Ports {
     /// bytes), or lets a stale half command time out.
     fn serve(&mut self, lp: &mut ControlLoop, now_us: u64) {
         let (ra, dec) = step_counts();
+        while let Ok(outcome) = STORE_OUTCOMES.try_receive() {
+            self.state.store_counters = outcome.counters;
+            let asked = outcome
+                .reply_to
+                .and_then(|p| self.interpreters.get_mut(p).zip(LINKS.get(p)));
+            if let Some((port, link)) = asked {
+                port.store_done(outcome.saved, &mut LinkSink(link));
+            }
+        }
         let mut mount = PortMount {
             control: lp,
             state: &mut self.state,
             now_us,
             steps: StepCounts { ra, dec },
+            port: 0,
         };
         let mut more = false;
-        for (port, link) in self.interpreters.iter_mut().zip(&LINKS) {
+        for (index, (port, link)) in self.interpreters.iter_mut().zip(&LINKS).enumerate() {
+            mount.port = index;
             let mut buf = [0u8; CHUNK];
             let mut sink = LinkSink(link);
             port.feed(&[], now_us, &mut mount, &mut sink);

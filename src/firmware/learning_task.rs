@@ -5,7 +5,7 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use static_cell::StaticCell;
 
-use mkgp_mount::control_loop::port_mount::{LearnedFrame, StoreRequest};
+use mkgp_mount::control_loop::port_mount::{LearnedFrame, StoreOutcome, StoreRequest};
 use mkgp_mount::control_loop::FrameRecord;
 use mkgp_mount::mount::config::Mount;
 use mkgp_mount::mount::learner::Learner;
@@ -13,12 +13,13 @@ use mkgp_mount::mount::worm_index::WormIndex;
 
 use embassy_futures::select::{select3, Either3};
 use embassy_time::{Duration, Instant};
-use mkgp_mount::persist::Erase;
+use mkgp_mount::persist::{Erase, StoreCounters};
 
 use crate::firmware::guiding_task::{
-    FRAMES, INDEX_EDGE, LEARNED, MODEL_ORIGIN, RESET_MODEL, STORE_REQUESTS,
+    FRAMES, INDEX_EDGE, LEARNED, MODEL_ORIGIN, RESET_MODEL, STORE_OUTCOMES, STORE_REQUESTS,
 };
 use crate::firmware::log;
+use crate::firmware::port_io::RECEIVED;
 use crate::firmware::storage::{self, FirmwareStore, SnapshotBuffer};
 use crate::STAGES;
 
@@ -94,10 +95,23 @@ pub async fn learning_task(learner: &'static mut Learner<STAGES>, mut storage: O
         let msg = match event {
             Event::Frame(msg) => msg,
             Event::Store(request) => {
-                if let Some(s) = storage.as_mut() {
-                    let pass = s.index.last_pass();
-                    storage::carry_out(s.store, learner, s.buf, request, pass).await;
-                }
+                let outcome = match storage.as_mut() {
+                    Some(s) => {
+                        let pass = s.index.last_pass();
+                        storage::carry_out(s.store, learner, s.buf, request, pass).await
+                    }
+                    // Not asked without a store (`PortState::store`).
+                    None => StoreOutcome {
+                        reply_to: request.reply_to(),
+                        saved: false,
+                        counters: StoreCounters::default(),
+                    },
+                };
+                // Lost only if the guiding task has not drained the queue
+                // since eight outcomes: the port then answers `0` at its
+                // timeout.
+                let _ = STORE_OUTCOMES.try_send(outcome);
+                RECEIVED.signal(());
                 continue;
             }
             Event::Index(ra_steps) => {
@@ -125,7 +139,14 @@ pub async fn learning_task(learner: &'static mut Learner<STAGES>, mut storage: O
             if last_save.elapsed() >= SAVE_EVERY {
                 last_save = Instant::now();
                 let pass = s.index.last_pass();
-                storage::save_model(s.store, learner, s.buf, Erase::Defer, pass).await;
+                let saved = storage::save_model(s.store, learner, s.buf, Erase::Defer, pass).await;
+                // For the store's counters on the ports; a full queue
+                // keeps the older ones until the next save.
+                let _ = STORE_OUTCOMES.try_send(StoreOutcome {
+                    reply_to: None,
+                    saved,
+                    counters: s.store.counters(),
+                });
             }
         }
     }

@@ -11,13 +11,14 @@ use core::sync::atomic::{AtomicU32, Ordering};
 use static_cell::StaticCell;
 
 use hal::storage::StorageFlash;
-use mkgp_mount::control_loop::port_mount::StoreRequest;
+use mkgp_mount::control_loop::port_mount::{StoreOutcome, StoreRequest};
 use mkgp_mount::model::snapshot::{Phase, SnapshotError};
 use mkgp_mount::mount::config::MountConfig;
 use mkgp_mount::mount::learner::{
     Learner, MODEL_ONLY_FORMAT, RECORD_FORMAT, RECORD_MAX, SHARE_FORMAT,
 };
 use mkgp_mount::mount::worm_index::WormIndex;
+use mkgp_mount::persist::store::SAVE_ATTEMPTS;
 use mkgp_mount::persist::{Erase, LoadError, Park, SaveError, Store};
 use mkgp_mount::port::mount_port::ModelOrigin;
 
@@ -90,18 +91,19 @@ pub async fn boot_config(store: &mut FirmwareStore) -> MountConfig {
 }
 
 /// Saves a configuration the port validated, now (an erase allowed: the
-/// user asked). Logs the outcome.
-pub async fn save_config(store: &mut FirmwareStore, config: MountConfig) {
+/// user asked). Logs the outcome; whether it was saved.
+pub async fn save_config(store: &mut FirmwareStore, config: MountConfig) -> bool {
     let Ok(mount) = config.validate() else {
         defmt::error!("configuration save: refused by validation (the port checked it)");
-        return;
+        return false;
     };
     let saved = flash_operation(store.save_config(&mount, Erase::Allow)).await;
-    report("configuration", saved);
+    report("configuration", saved)
 }
 
-/// Logs a save's outcome.
-pub fn report<E>(what: &str, result: Result<(), SaveError<E>>) {
+/// Logs a save's outcome; whether it was saved.
+pub fn report<E>(what: &str, result: Result<(), SaveError<E>>) -> bool {
+    let saved = result.is_ok();
     match result {
         Ok(()) => defmt::info!("{} saved", what),
         Err(SaveError::EraseDeferred) => {
@@ -110,10 +112,16 @@ pub fn report<E>(what: &str, result: Result<(), SaveError<E>>) {
         Err(SaveError::TooLarge { len }) => {
             defmt::error!("{} not saved: {} bytes is too large", what, len)
         }
+        Err(SaveError::Unverified) => defmt::error!(
+            "{} not saved: it read back wrong {} times (flash not erased where it wrote); the previous one stays",
+            what,
+            SAVE_ATTEMPTS
+        ),
         Err(SaveError::Geometry(_)) | Err(SaveError::Flash(_)) => {
             defmt::error!("{} not saved: the flash failed", what)
         }
     }
+    saved
 }
 
 /// The park the mount was switched off in, if any: its step counts, which
@@ -224,55 +232,65 @@ pub fn snapshot_buffer() -> Option<&'static mut SnapshotBuffer> {
 
 /// Saves the learned model, and with it the worm index's last pass if
 /// there was one; `erase` says whether a sector may be erased (which stops
-/// tracking for 1-2 s).
+/// tracking for 1-2 s). Whether the model was saved.
 pub async fn save_model(
     store: &mut FirmwareStore,
     learner: &Learner<STAGES>,
     buf: &mut SnapshotBuffer,
     erase: Erase,
     index_pass: Option<i64>,
-) {
+) -> bool {
     match learner.snapshot(buf) {
         Ok(n) => {
             let bytes = buf.get(..n).unwrap_or(&[]);
             let saved = flash_operation(store.save_model(RECORD_FORMAT, bytes, erase)).await;
-            let model_saved = saved.is_ok();
-            report("model", saved);
+            let model_saved = report("model", saved);
             if let (true, Some(pass)) = (model_saved, index_pass) {
                 let saved = flash_operation(store.save_index(pass, erase)).await;
                 report("worm index pass", saved);
             }
+            model_saved
         }
         Err(SnapshotError::Placing) => {
-            defmt::info!("model not saved yet: its restored data awaits its phase")
+            defmt::info!("model not saved yet: its restored data awaits its phase");
+            false
         }
-        Err(_) => defmt::error!("model not saved: its snapshot failed"),
+        Err(_) => {
+            defmt::error!("model not saved: its snapshot failed");
+            false
+        }
     }
 }
 
-/// Carries out what a port asked of the store.
+/// Carries out what a port asked of the store; what became of it.
 pub async fn carry_out(
     store: &mut FirmwareStore,
     learner: &Learner<STAGES>,
     buf: &mut SnapshotBuffer,
     request: StoreRequest,
     index_pass: Option<i64>,
-) {
-    match request {
-        StoreRequest::Config(config) => save_config(store, config).await,
-        StoreRequest::Model => save_model(store, learner, buf, Erase::Allow, index_pass).await,
+) -> StoreOutcome {
+    let saved = match request {
+        StoreRequest::Config { config, .. } => save_config(store, config).await,
+        StoreRequest::Model { .. } => {
+            save_model(store, learner, buf, Erase::Allow, index_pass).await
+        }
         StoreRequest::Park(counts) => {
             let park = Park {
                 ra_steps: counts.ra,
                 dec_steps: counts.dec,
             };
             let saved = flash_operation(store.save_park(park, Erase::Allow)).await;
-            report("park", saved);
-            save_model(store, learner, buf, Erase::Allow, index_pass).await;
+            report("park", saved) & save_model(store, learner, buf, Erase::Allow, index_pass).await
         }
         StoreRequest::Unpark => {
             let saved = flash_operation(store.clear_park(Erase::Allow)).await;
-            report("unpark", saved);
+            report("unpark", saved)
         }
+    };
+    StoreOutcome {
+        reply_to: request.reply_to(),
+        saved,
+        counters: store.counters(),
     }
 }

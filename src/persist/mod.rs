@@ -44,7 +44,7 @@ mod power_fail_tests;
 
 pub use erase_gate::Erase;
 pub use park::Park;
-pub use store::{LoadError, SaveError, Store};
+pub use store::{LoadError, SaveError, Store, StoreCounters};
 
 /// The largest model snapshot the store takes, in bytes. The store's buffer
 /// holds one record of this size ([`store::BUFFER_LEN`], 8224 bytes of RAM).

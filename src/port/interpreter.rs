@@ -4,7 +4,7 @@
 //! whatever it received and the time; nothing here blocks, allocates or
 //! keeps more than the fixed state below.
 
-use super::command::{parse, Command, Query, Refusal, Setting, SlewRate};
+use super::command::{parse, Command, Own, Query, Refusal, Setting, SlewRate};
 use super::coords::{Equatorial, Precision};
 use super::framer::{Frame, Framer, FramerCounters};
 use super::mount_port::{Axis, Counter, GuidePulse, MountPort, PecState};
@@ -35,7 +35,15 @@ pub struct PortCounters {
     pub replies_cut: u32,
     /// Replies and telemetry lines the transport had no room for.
     pub replies_dropped: u32,
+    /// Saves asked (`:~W#`, `:~KW#`) whose outcome did not come within
+    /// [`STORE_REPLY_TIMEOUT_US`]: answered `0`.
+    pub store_timeouts: u32,
 }
+
+/// How long a save's reply waits for the store's outcome. A save reads
+/// both pages twice and may erase a sector (1-2 s); beyond this the store
+/// is taken to have failed and the client hears `0`.
+pub const STORE_REPLY_TIMEOUT_US: u64 = 20_000_000;
 
 impl PortCounters {
     /// Counter `index` by name, for `:~Cp#`.
@@ -50,6 +58,7 @@ impl PortCounters {
             6 => ("bad_values", self.bad_values),
             7 => ("replies_cut", self.replies_cut),
             8 => ("replies_dropped", self.replies_dropped),
+            9 => ("store_timeouts", self.store_timeouts),
             _ => return None,
         };
         Some(Counter { name, value })
@@ -65,12 +74,15 @@ struct Session {
     target: Equatorial,
     site: Site,
     telemetry: bool,
+    /// A save asked on this port whose reply waits for the store's
+    /// outcome ([`Interpreter::store_done`]), until this time.
+    store_reply_due_us: Option<u64>,
     /// The counters the framer does not keep.
     counters: PortCounters,
 }
 
-/// One port's interpreter: 168 bytes on x86-64, its framer's buffer
-/// included (the unit test `size` bounds it at 176).
+/// One port's interpreter: 184 bytes on x86-64, its framer's buffer
+/// included (the unit test `size` bounds it at 192).
 #[derive(Clone, Debug)]
 pub struct Interpreter {
     framer: Framer,
@@ -95,6 +107,7 @@ impl Interpreter {
                 target: Equatorial::default(),
                 site: Site::default(),
                 telemetry: false,
+                store_reply_due_us: None,
                 counters: PortCounters::default(),
             },
         }
@@ -111,6 +124,16 @@ impl Interpreter {
         out: &mut impl ReplySink,
     ) {
         self.framer.expire(now_us);
+        if self
+            .session
+            .store_reply_due_us
+            .is_some_and(|due| now_us >= due)
+        {
+            self.session.store_reply_due_us = None;
+            self.session.counters.store_timeouts =
+                self.session.counters.store_timeouts.wrapping_add(1);
+            self.session.sent(out.send(b"0"));
+        }
         for &byte in bytes {
             // Before the byte: a command's `#` changes no framer counter, and
             // the frame borrows the framer.
@@ -132,6 +155,20 @@ impl Interpreter {
 
     pub fn counters(&self) -> PortCounters {
         self.session.counters_now(self.framer.counters())
+    }
+
+    /// The store's outcome of the save this port asked for: `1` saved (read
+    /// back as written), `0` not. Ignored if no save is waiting (its reply
+    /// timed out).
+    pub fn store_done(&mut self, saved: bool, out: &mut impl ReplySink) {
+        if self.session.store_reply_due_us.take().is_some() {
+            self.session.sent(out.send(if saved { b"1" } else { b"0" }));
+        }
+    }
+
+    /// Whether a save asked on this port waits for the store's outcome.
+    pub fn awaits_store(&self) -> bool {
+        self.session.store_reply_due_us.is_some()
     }
 
     /// Whether this port's client asked for telemetry (`:~T1#`).
@@ -246,11 +283,24 @@ impl Session {
             // No reply: INDI's LX200 driver reads none after `:hP#`.
             Command::Park => mount.park(),
             Command::Unpark => mount.unpark(),
+            Command::Own(Own::ConfigSave) => self.ask_store(now_us, reply, || mount.save_config()),
+            Command::Own(Own::SaveModel) => self.ask_store(now_us, reply, || mount.save_model()),
             Command::Own(command) => {
                 if let Some(on) = own::carry_out(command, port, mount, reply) {
                     self.telemetry = on;
                 }
             }
+        }
+    }
+
+    /// A save: asked of the mount unless one asked on this port still waits
+    /// (one at a time, so that each outcome answers its own command). The
+    /// reply waits for the outcome; `0` now if nothing was asked.
+    fn ask_store(&mut self, now_us: u64, reply: &mut Reply, ask: impl FnOnce() -> bool) {
+        if self.store_reply_due_us.is_none() && ask() {
+            self.store_reply_due_us = Some(now_us.saturating_add(STORE_REPLY_TIMEOUT_US));
+        } else {
+            reply.byte(b'0');
         }
     }
 

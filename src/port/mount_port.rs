@@ -205,7 +205,8 @@ pub trait MountPort {
     /// Replaces it (the port has validated it).
     fn set_pending_config(&mut self, config: MountConfig);
     /// Asks for the pending configuration to be saved; `false` if no save
-    /// can be asked now (no store, or one under way).
+    /// can be asked now (no store, or too many under way). The outcome
+    /// comes back through [`Interpreter::store_done`](super::Interpreter::store_done).
     fn save_config(&mut self) -> bool;
     /// Parks where the mount points: motion and tracking stop, the step
     /// counters and the model are saved, so that a mount not moved while
@@ -214,6 +215,7 @@ pub trait MountPort {
     /// Tracking again after a park.
     fn unpark(&mut self);
     /// Asks for the learned model to be saved now; `false` if it cannot be
-    /// (no store).
+    /// (no store). The outcome comes back as for
+    /// [`save_config`](Self::save_config).
     fn save_model(&mut self) -> bool;
 }

@@ -123,12 +123,8 @@ pub fn carry_out(
             mount.set_pending_config(MountConfig::default());
             reply.byte(b'1');
         }
-        Own::ConfigSave => {
-            reply.byte(if mount.save_config() { b'1' } else { b'0' });
-        }
-        Own::SaveModel => {
-            reply.byte(if mount.save_model() { b'1' } else { b'0' });
-        }
+        // The interpreter's: their reply waits for the store.
+        Own::ConfigSave | Own::SaveModel => {}
     }
     None
 }
