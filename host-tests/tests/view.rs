@@ -18,15 +18,19 @@
 //! Without `chromium` the test is skipped with a message, unless CI=true.
 //! Every process it starts is killed at the end (each in its own process
 //! group, Chromium's helpers included); each has a timeout.
+//!
+//! Without a browser (issue 26): the server answers only requests for its
+//! own address or localhost (DNS rebinding), and warns when it listens
+//! beyond loopback.
 
 use host_tests::cases;
 use host_tests::data;
 use std::io::{Read, Write};
-use std::net::TcpListener;
+use std::net::{TcpListener, TcpStream};
 use std::os::unix::process::CommandExt;
 mod common;
 
-use common::process::{guide_sim, Group};
+use common::process::{guide_sim, guide_sim_with, Group};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicU32, Ordering};
@@ -389,4 +393,123 @@ fn the_page_tells_bad_input() {
     let p = page.problems();
     assert!(p.contains("\"Autostar\", not mkgp-mount"), "{p}");
     assert_eq!(page.num("data-frames"), 0.0);
+}
+
+/// `guide-sim view` listening on `listen`, of a port nobody serves (the
+/// page is served all the same); its stderr to `stderr`.
+fn view_of_nothing(listen: &str, stderr: Stdio) -> (Group, String) {
+    let port = TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let target = format!("127.0.0.1:{port}");
+    guide_sim_with(&["view", "--tcp", &target, "--listen", listen], stderr)
+}
+
+/// The `ADDR:PORT` the ready line's URL names.
+fn served_at(ready: &str) -> String {
+    url(ready)
+        .trim_start_matches("http://")
+        .trim_end_matches('/')
+        .to_string()
+}
+
+/// Sends `request` to `addr` and reads the response to its end (the
+/// server closes): the status code and the whole response.
+fn http(addr: &str, request: &str) -> (u16, String) {
+    let mut s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    s.write_all(request.as_bytes()).unwrap();
+    let mut got = Vec::new();
+    let _ = s.read_to_end(&mut got);
+    let got = String::from_utf8_lossy(&got).into_owned();
+    let code = got
+        .split_whitespace()
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .unwrap_or(0);
+    (code, got)
+}
+
+fn first_line(response: &str) -> &str {
+    response.lines().next().unwrap_or("")
+}
+
+/// Issue 26, item 6: a page of another site that resolves its own name to
+/// 127.0.0.1 (DNS rebinding) reaches the view with its own name in `Host`;
+/// only the view's address and localhost, with its port, are answered.
+#[test]
+fn the_view_answers_only_requests_for_itself() {
+    let (_view, ready) = view_of_nothing("127.0.0.1:0", Stdio::inherit());
+    let addr = served_at(&ready);
+    let port: u16 = addr.rsplit(':').next().unwrap().parse().unwrap();
+    let get = |path: &str, version: &str, headers: &str| {
+        http(&addr, &format!("GET {path} {version}\r\n{headers}\r\n"))
+    };
+    let own = [
+        addr.clone(),
+        format!("localhost:{port}"),
+        format!("LocalHost:{port}"),
+    ];
+    let others = [
+        format!("rebound.example:{port}"),
+        "rebound.example".to_string(),
+        format!("127.0.0.1.rebound.example:{port}"),
+        format!("localhost.rebound.example:{port}"),
+        format!("127.0.0.1:{}", port.wrapping_add(1)),
+        "127.0.0.1".to_string(),
+        "localhost".to_string(),
+        String::new(),
+    ];
+    for path in ["/", "/view.js", "/view.css", "/state", "/session.csv"] {
+        for host in &own {
+            let (code, r) = get(path, "HTTP/1.1", &format!("Host: {host}\r\n"));
+            assert_eq!(code, 200, "{path} for {host}: {}", first_line(&r));
+        }
+        for host in &others {
+            let (code, r) = get(path, "HTTP/1.1", &format!("Host: {host}\r\n"));
+            assert_eq!(code, 421, "{path} for {host:?}: {}", first_line(&r));
+        }
+        // HTTP/1.1 requires Host; HTTP/1.0 has none to check (no browser
+        // sends one without it), so it is served.
+        let (code, r) = get(path, "HTTP/1.1", "");
+        assert_eq!(code, 400, "{path} without Host: {}", first_line(&r));
+        let (code, r) = get(path, "HTTP/1.0", "");
+        assert_eq!(
+            code,
+            200,
+            "{path}, HTTP/1.0 without Host: {}",
+            first_line(&r)
+        );
+        // Two of them: which one would a proxy have read?
+        let two = format!("Host: {addr}\r\nHost: rebound.example:{port}\r\n");
+        let (code, r) = get(path, "HTTP/1.1", &two);
+        assert_eq!(code, 400, "{path} with two Hosts: {}", first_line(&r));
+    }
+    // Still GET only, once the host is right.
+    let (code, r) = http(
+        &addr,
+        &format!("POST /state HTTP/1.1\r\nHost: {addr}\r\nContent-Length: 0\r\n\r\n"),
+    );
+    assert_eq!(code, 405, "{}", first_line(&r));
+}
+
+/// Issue 26, item 6: `--listen 0.0.0.0:PORT` serves every interface; the
+/// view says so on stderr, and says nothing on loopback.
+#[test]
+fn the_view_warns_when_it_listens_beyond_loopback() {
+    for (listen, warns) in [("0.0.0.0:0", true), ("127.0.0.1:0", false)] {
+        let (mut view, _) = view_of_nothing(listen, Stdio::piped());
+        let mut stderr = view.0.stderr.take().unwrap();
+        // Killed: its stderr ends, with what it said before its ready line.
+        drop(view);
+        let mut said = String::new();
+        stderr.read_to_string(&mut said).unwrap();
+        assert_eq!(
+            said.contains("warning: listening on"),
+            warns,
+            "--listen {listen}: stderr {said:?}"
+        );
+    }
 }

@@ -1,11 +1,14 @@
 //! A small HTTP/1.1 server for the page: GET only, one thread per
 //! connection, `Connection: close`. It serves the page's three files from
-//! the binary, the state as JSON and the session as CSV; nothing else, and
-//! nothing from outside.
+//! the binary, the state as JSON and the session as CSV; nothing else,
+//! nothing from outside, and only to requests that name it
+//! ([`request::read`]).
+
+pub mod request;
 
 use super::session::Session;
 use super::state;
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::Write;
 use std::net::{TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -14,9 +17,6 @@ use std::time::Duration;
 const INDEX: &str = include_str!("page/index.html");
 const SCRIPT: &str = include_str!("page/view.js");
 const STYLE: &str = include_str!("page/view.css");
-
-/// A request line and headers longer than this are refused.
-const MAX_REQUEST: usize = 8192;
 
 fn respond(s: &mut TcpStream, status: &str, kind: &str, extra: &str, body: &[u8]) {
     let head = format!(
@@ -28,35 +28,14 @@ fn respond(s: &mut TcpStream, status: &str, kind: &str, extra: &str, body: &[u8]
     let _ = s.write_all(head.as_bytes()).and_then(|_| s.write_all(body));
 }
 
-/// The request's method and path, or `None` if it is not one.
-fn request(s: &TcpStream) -> Option<(String, String)> {
-    let mut r = BufReader::new(s.try_clone().ok()?.take(MAX_REQUEST as u64));
-    let mut first = String::new();
-    r.read_line(&mut first).ok()?;
-    // The headers, read and ignored (the page sends no body).
-    loop {
-        let mut h = String::new();
-        if r.read_line(&mut h).ok()? == 0 || h == "\r\n" || h == "\n" {
-            break;
-        }
-    }
-    let mut it = first.split_whitespace();
-    Some((it.next()?.to_string(), it.next()?.to_string()))
-}
-
 fn serve(mut s: TcpStream, session: &Mutex<Session>) {
     let _ = s.set_read_timeout(Some(Duration::from_secs(5)));
     let _ = s.set_write_timeout(Some(Duration::from_secs(5)));
-    let Some((method, path)) = request(&s) else {
-        return respond(
-            &mut s,
-            "400 Bad Request",
-            "text/plain",
-            "",
-            b"bad request\n",
-        );
+    let req = match request::read(&s) {
+        Ok(r) => r,
+        Err((status, why)) => return respond(&mut s, status, "text/plain", "", why.as_bytes()),
     };
-    if method != "GET" {
+    if req.method != "GET" {
         return respond(
             &mut s,
             "405 Method Not Allowed",
@@ -65,7 +44,7 @@ fn serve(mut s: TcpStream, session: &Mutex<Session>) {
             b"GET only\n",
         );
     }
-    let path = path.split('?').next().unwrap_or("");
+    let path = req.path.split('?').next().unwrap_or("");
     match path {
         "/" | "/index.html" => respond(
             &mut s,
