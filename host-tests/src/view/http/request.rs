@@ -1,7 +1,9 @@
-//! A request's head, and whether it is meant for this server.
+//! A request's head, read against one deadline, and whether it is meant
+//! for this server.
 
-use std::io::{BufRead, BufReader, Read};
+use std::io::{self, BufRead, BufReader, ErrorKind, Read};
 use std::net::{IpAddr, SocketAddr, TcpStream};
+use std::time::Instant;
 
 /// A request line and headers longer than this are refused.
 const MAX_HEAD: u64 = 8192;
@@ -19,12 +21,12 @@ pub struct Request {
 /// A request refused: its status line's status and a body saying why.
 pub type Refusal = (&'static str, String);
 
-/// Reads a request head from `s` and refuses it unless it is meant for
-/// this server ([`Request::check_host`]).
-pub fn read(s: &TcpStream) -> Result<Request, Refusal> {
+/// Reads a request head from `s`, all of it before `deadline`, and
+/// refuses it unless it is meant for this server ([`Request::check_host`]).
+pub fn read(s: &TcpStream, deadline: Instant) -> Result<Request, Refusal> {
     let bad = || ("400 Bad Request", "bad request\n".to_string());
     let local = s.local_addr().map_err(|_| bad())?;
-    let mut r = BufReader::new(s.take(MAX_HEAD));
+    let mut r = BufReader::new(Until { s, deadline }.take(MAX_HEAD));
     let mut line = String::new();
     let mut next = |line: &mut String| -> Result<(), Refusal> {
         line.clear();
@@ -32,6 +34,10 @@ pub fn read(s: &TcpStream) -> Result<Request, Refusal> {
             // The head ends with an empty line, not with the connection.
             Ok(0) => Err(bad()),
             Ok(_) => Ok(()),
+            Err(e) if e.kind() == ErrorKind::TimedOut => Err((
+                "408 Request Timeout",
+                "the request did not come in time\n".to_string(),
+            )),
             Err(_) => Err(bad()),
         }
     };
@@ -98,6 +104,28 @@ fn names(host: &str, local: SocketAddr) -> bool {
     port == Some(local.port())
         && (name.eq_ignore_ascii_case("localhost")
             || ip.is_ok_and(|ip| ip.to_canonical() == local.ip().to_canonical()))
+}
+
+/// `s` read against one deadline for the whole head: a timeout per read
+/// would let a client that sends a byte now and then keep its connection,
+/// and a thread, for ever.
+struct Until<'a> {
+    s: &'a TcpStream,
+    deadline: Instant,
+}
+
+impl Read for Until<'_> {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        let left = self.deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return Err(ErrorKind::TimedOut.into());
+        }
+        self.s.set_read_timeout(Some(left))?;
+        match self.s.read(buf) {
+            Err(e) if e.kind() == ErrorKind::WouldBlock => Err(ErrorKind::TimedOut.into()),
+            r => r,
+        }
+    }
 }
 
 #[cfg(test)]
