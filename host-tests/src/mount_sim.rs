@@ -11,7 +11,10 @@
 //! measure a client's pulses exactly). Simulated time runs
 //! [`Options::speed`] times real time. Each transport has its own
 //! `Interpreter` (precision, selected rate, site and telemetry are a
-//! port's own, as on the board); the sync is the mount's, shared.
+//! port's own, as on the board); the sync is the mount's, shared. Replies
+//! leave through a pipe of the board's size, whole or not at all: a client
+//! that stops reading loses replies (counted in that port's
+//! `replies_dropped`), it does not stop the mount.
 //!
 //! The pty's slave side is kept open here and set raw: with no client on it
 //! the master would read end-of-file, and with the terminal's default echo
@@ -128,14 +131,71 @@ impl Drop for Pty {
     }
 }
 
-/// Replies collected during one feed, written out after it.
-#[derive(Default)]
-struct Out(Vec<u8>);
+/// The bytes of replies waiting for the transport, at most: the board's
+/// transmit pipe per port (docs/port.md).
+const TX_PIPE: usize = 512;
 
-impl ReplySink for Out {
+/// The replies a port's transport has not taken yet.
+#[derive(Default)]
+struct TxPipe(Vec<u8>);
+
+impl TxPipe {
+    /// Writes what the transport takes now; the rest waits for the next
+    /// call. An error is the client gone, not a full transport.
+    fn flush(&mut self, w: &mut impl Write) -> io::Result<()> {
+        while !self.0.is_empty() {
+            match w.write(&self.0) {
+                Ok(0) => return Err(ErrorKind::WriteZero.into()),
+                Ok(n) => drop(self.0.drain(..n)),
+                Err(e) if e.kind() == ErrorKind::WouldBlock => break,
+                Err(e) if e.kind() == ErrorKind::Interrupted => {}
+                Err(e) => return Err(e),
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A pipe and its transport, where the interpreter sends, as on the
+/// board: a reply goes out whole or not at all (the interpreter counts it
+/// in `replies_dropped`), so a client that stops reading loses replies,
+/// never the mount. What the transport takes goes at once; the pipe holds
+/// only the rest. Errors wait for [`TxPipe::flush`] after the feed.
+struct Sending<'a, W> {
+    tx: &'a mut TxPipe,
+    w: &'a mut W,
+}
+
+impl<W: Write> ReplySink for Sending<'_, W> {
     fn send(&mut self, reply: &[u8]) -> bool {
-        self.0.extend_from_slice(reply);
-        true
+        let _ = self.tx.flush(self.w);
+        let fits = self.tx.0.len() + reply.len() <= TX_PIPE;
+        if fits {
+            self.tx.0.extend_from_slice(reply);
+            let _ = self.tx.flush(self.w);
+        }
+        fits
+    }
+}
+
+/// One transport's side of the command port: its own interpreter, and the
+/// replies the transport has not taken yet.
+#[derive(Default)]
+struct PortIo {
+    port: Interpreter,
+    tx: TxPipe,
+}
+
+impl PortIo {
+    /// The interpreter, and where it sends its replies on `w`.
+    fn sending<'a, W>(&'a mut self, w: &'a mut W) -> (&'a mut Interpreter, Sending<'a, W>) {
+        (
+            &mut self.port,
+            Sending {
+                tx: &mut self.tx,
+                w,
+            },
+        )
     }
 }
 
@@ -150,25 +210,20 @@ fn read_ready(r: &mut impl Read, buf: &mut [u8]) -> io::Result<Option<usize>> {
 }
 
 /// One transport's bytes through its interpreter on the rig; the replies
-/// written back.
+/// sent back on `w`.
 fn serve_bytes(
     rig: &mut Rig,
-    port: &mut Interpreter,
+    io: &mut PortIo,
+    w: &mut impl Write,
     state: &mut PortState,
     bytes: &[u8],
-    w: &mut impl Write,
-) -> io::Result<()> {
-    let mut out = Out::default();
+) {
+    let (port, mut out) = io.sending(w);
     rig.feed_port(port, state, bytes, &mut out);
     // The motion a command started is set at the loop's next wake-up, a
     // microsecond on, as the board's guiding task would.
     let now = rig.now_us;
     rig.run_until(now + 1);
-    if !out.0.is_empty() {
-        w.write_all(&out.0)?;
-        w.flush()?;
-    }
-    Ok(())
 }
 
 /// Runs the mount until `stop` is set; `ready` is called once with a line
@@ -178,7 +233,7 @@ pub fn serve(opts: Options, stop: &AtomicBool, ready: impl FnOnce(&str)) -> io::
     rig.guider_on = opts.st4_guider;
     let mut state = PortState::new(&rig.mount, IDENTITY, ResetCause::PowerOn);
     let mut pty = match &opts.pty {
-        Some(link) => Some((Pty::open(link)?, Interpreter::new())),
+        Some(link) => Some((Pty::open(link)?, PortIo::default())),
         None => None,
     };
     let listener = match opts.tcp {
@@ -189,7 +244,7 @@ pub fn serve(opts: Options, stop: &AtomicBool, ready: impl FnOnce(&str)) -> io::
         }
         None => None,
     };
-    let mut client: Option<(TcpStream, Interpreter)> = None;
+    let mut client: Option<(TcpStream, PortIo)> = None;
     let mut where_ = Vec::new();
     if let Some((p, _)) = &pty {
         where_.push(format!(
@@ -237,12 +292,12 @@ pub fn serve(opts: Options, stop: &AtomicBool, ready: impl FnOnce(&str)) -> io::
         let now_us = (start.elapsed().as_secs_f64() * opts.speed * 1e6) as u64;
         rig.run_until(now_us.max(rig.now_us));
 
-        if let Some((p, port)) = &mut pty {
+        if let Some((p, io)) = &mut pty {
             // EIO: no client has the slave open (cannot happen while we
             // hold it; harmless if it does).
             if let Ok(Some(n)) = read_ready(&mut p.master, &mut buf) {
                 if n > 0 {
-                    serve_bytes(&mut rig, port, &mut state, &buf[..n], &mut p.master)?;
+                    serve_bytes(&mut rig, io, &mut p.master, &mut state, &buf[..n]);
                 }
             }
         }
@@ -251,34 +306,34 @@ pub fn serve(opts: Options, stop: &AtomicBool, ready: impl FnOnce(&str)) -> io::
                 // One client at a time: a new one replaces the old.
                 s.set_nonblocking(true)?;
                 s.set_nodelay(true)?;
-                client = Some((s, Interpreter::new()));
+                client = Some((s, PortIo::default()));
             }
         }
-        if let Some((s, port)) = &mut client {
-            let gone = match read_ready(s, &mut buf) {
-                Ok(Some(0)) => false,
-                Ok(Some(n)) => serve_bytes(&mut rig, port, &mut state, &buf[..n], s).is_err(),
-                Ok(None) | Err(_) => true,
-            };
-            if gone {
-                client = None;
+        if let Some((s, io)) = &mut client {
+            match read_ready(s, &mut buf) {
+                Ok(Some(0)) => {}
+                Ok(Some(n)) => serve_bytes(&mut rig, io, s, &mut state, &buf[..n]),
+                Ok(None) | Err(_) => client = None,
             }
         }
         if let Some(learned) = rig.take_learned() {
             let line = learned.telemetry(rig.now_us);
-            // A client that does not read loses the line (the board drops
-            // it whole and counts it).
-            if let Some((p, port)) = &mut pty {
-                let mut out = Out::default();
+            if let Some((p, io)) = &mut pty {
+                let (port, mut out) = io.sending(&mut p.master);
                 port.send_telemetry(&line, &mut out);
-                let _ = p.master.write_all(&out.0);
             }
-            if let Some((s, port)) = &mut client {
-                let mut out = Out::default();
+            if let Some((s, io)) = &mut client {
+                let (port, mut out) = io.sending(s);
                 port.send_telemetry(&line, &mut out);
-                if s.write_all(&out.0).is_err() {
-                    client = None;
-                }
+            }
+        }
+        // Whatever the clients read meanwhile makes room for the rest.
+        if let Some((p, io)) = &mut pty {
+            let _ = io.tx.flush(&mut p.master);
+        }
+        if let Some((s, io)) = &mut client {
+            if io.tx.flush(s).is_err() {
+                client = None;
             }
         }
         if state.take_reset_request() {

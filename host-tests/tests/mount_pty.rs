@@ -2,7 +2,7 @@
 //! raw LX200 bytes, as a client would: the connect queries, a sync, timed
 //! guides read back through the step counters and our `:~` queries, the
 //! telemetry line, a model reset, and a clean exit on SIGTERM (the link
-//! removed).
+//! removed); and a client that never reads its replies.
 
 mod common;
 
@@ -61,34 +61,43 @@ fn ask_bytes(pty: &mut File, cmd: &str, n: usize) -> String {
 fn steps(pty: &mut File) -> (i64, i64, Instant) {
     let r = ask(pty, ":~P#", 1);
     let at = Instant::now();
-    let field = |key: &str| -> i64 {
-        r.split([' ', '#'])
-            .find_map(|f| f.strip_prefix(key))
-            .unwrap_or_else(|| panic!("{key} in {r:?}"))
-            .parse()
-            .unwrap()
-    };
-    (field("ra_steps="), field("dec_steps="), at)
+    (field(&r, "ra_steps="), field(&r, "dec_steps="), at)
 }
 
-fn link_path() -> PathBuf {
-    std::env::temp_dir().join(format!("mkgp-mount-pty-{}", std::process::id()))
+/// The number after `key` in a `key=value ...#` reply.
+fn field(reply: &str, key: &str) -> i64 {
+    reply
+        .split([' ', '#'])
+        .find_map(|f| f.strip_prefix(key))
+        .unwrap_or_else(|| panic!("{key} in {reply:?}"))
+        .parse()
+        .unwrap()
+}
+
+/// A link of this test's own (the tests run in parallel).
+fn link_path(test: &str) -> PathBuf {
+    std::env::temp_dir().join(format!("mkgp-mount-pty-{test}-{}", std::process::id()))
+}
+
+/// The client's end of the pty, as a serial program opens it.
+fn open_pty(link: &Path) -> File {
+    OpenOptions::new()
+        .read(true)
+        .write(true)
+        .custom_flags(libc::O_NOCTTY | libc::O_NONBLOCK)
+        .open(link)
+        .expect("the pty link opens")
 }
 
 #[test]
 fn the_virtual_mount_answers_lx200_on_its_pty() {
-    let link = link_path();
+    let link = link_path("answers");
     let (mut sim, ready) = start(&link);
     assert!(
         ready.starts_with("guide-sim mount: ready on pty"),
         "{ready}"
     );
-    let mut pty = OpenOptions::new()
-        .read(true)
-        .write(true)
-        .custom_flags(libc::O_NOCTTY | libc::O_NONBLOCK)
-        .open(&link)
-        .expect("the pty link opens");
+    let mut pty = open_pty(&link);
 
     // What indi_lx200generic asks on connect.
     assert_eq!(ask_bytes(&mut pty, "\x06", 1), "P");
@@ -153,6 +162,11 @@ fn the_virtual_mount_answers_lx200_on_its_pty() {
         ask(&mut pty, ":~Cg17#", 1),
         "port_pulses=2 manual_moves=0 port_refused=0 st4_refused=0#"
     );
+    // Asked together, as `guide-sim view` does: more than the transmit
+    // pipe holds, all of it read at once.
+    let all = ask(&mut pty, ":~Cp#:~Cg#:~Cf#:~Cl#:~Cs#:~L#", 6);
+    assert_eq!(all.matches('#').count(), 6, "{all}");
+    assert!(all.len() > 512, "{} bytes", all.len());
 
     // Telemetry: asked for, a line per learned frame arrives unasked.
     assert_eq!(ask_bytes(&mut pty, ":~T1#", 1), "1");
@@ -188,4 +202,72 @@ fn the_virtual_mount_answers_lx200_on_its_pty() {
         std::fs::symlink_metadata(&link).is_err(),
         "the link is removed"
     );
+}
+
+/// Issue 26: clients that write `:GR#` and never read (2,200 one-shot
+/// clients did it) fill the pty; the mount must drop the replies that find
+/// no room, whole, count them in `replies_dropped` (`:~Cp#`) and go on.
+#[test]
+fn replies_nobody_reads_are_dropped_whole_and_counted() {
+    let link = link_path("unread");
+    let (mut sim, _) = start(&link);
+    let mut pty = open_pty(&link);
+
+    // 10,000 replies of 9 bytes: far more than the pty holds.
+    const SENT: usize = 10_000;
+    let mut cmds = ":GR#".repeat(SENT).into_bytes();
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while !cmds.is_empty() && Instant::now() < deadline {
+        match pty.write(&cmds) {
+            Ok(n) => drop(cmds.drain(..n)),
+            Err(e) if e.kind() == ErrorKind::WouldBlock => {
+                std::thread::sleep(Duration::from_millis(2))
+            }
+            // The mount went away: the check below says how.
+            Err(_) => break,
+        }
+    }
+    std::thread::sleep(Duration::from_millis(300));
+    assert_eq!(
+        sim.0.try_wait().unwrap(),
+        None,
+        "the mount exited with its replies unread"
+    );
+    assert!(cmds.is_empty(), "the mount stopped reading its commands");
+
+    // Now read: whole replies only, then the mount answers again.
+    let mut got = Vec::new();
+    let mut buf = [0u8; 4096];
+    let mut quiet_since = Instant::now();
+    while quiet_since.elapsed() < Duration::from_millis(300) {
+        match pty.read(&mut buf) {
+            Ok(n) => {
+                got.extend_from_slice(&buf[..n]);
+                quiet_since = Instant::now();
+            }
+            Err(e) if e.kind() == ErrorKind::WouldBlock => {
+                std::thread::sleep(Duration::from_millis(2))
+            }
+            Err(e) => panic!("{e}"),
+        }
+    }
+    let got = String::from_utf8(got).unwrap();
+    let replies: Vec<&str> = got.strip_suffix('#').unwrap_or(&got).split('#').collect();
+    assert!(
+        replies
+            .iter()
+            .all(|r| r.len() == 8 && r.as_bytes()[2] == b':'),
+        "a reply cut or mixed: {:?}",
+        replies.iter().find(|r| r.len() != 8)
+    );
+    let counters = ask(&mut pty, ":~Cp#", 1);
+    let dropped = field(&counters, "replies_dropped=") as usize;
+    println!(
+        "{SENT} :GR# unread: {} replies kept, {dropped} dropped",
+        replies.len()
+    );
+    assert_eq!(field(&counters, "commands=") as usize, SENT);
+    assert!(dropped > 0, "nothing dropped: {counters}");
+    assert_eq!(replies.len() + dropped, SENT, "{counters}");
+    assert_eq!(ask(&mut pty, ":GR#", 1).len(), 9);
 }

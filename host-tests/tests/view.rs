@@ -18,15 +18,21 @@
 //! Without `chromium` the test is skipped with a message, unless CI=true.
 //! Every process it starts is killed at the end (each in its own process
 //! group, Chromium's helpers included); each has a timeout.
+//!
+//! Without a browser (issue 26): the server answers only requests for its
+//! own address or localhost (DNS rebinding), warns when it listens beyond
+//! loopback, gives a request head a deadline as a whole, and slow clients
+//! hold no more than its bound of connections while a GET is answered.
 
 use host_tests::cases;
 use host_tests::data;
-use std::io::{Read, Write};
-use std::net::TcpListener;
+use host_tests::view::http::{HEAD_DEADLINE, MAX_CONNECTIONS};
+use std::io::{ErrorKind, Read, Write};
+use std::net::{TcpListener, TcpStream};
 use std::os::unix::process::CommandExt;
 mod common;
 
-use common::process::{guide_sim, Group};
+use common::process::{guide_sim, guide_sim_with, Group};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicU32, Ordering};
@@ -389,4 +395,230 @@ fn the_page_tells_bad_input() {
     let p = page.problems();
     assert!(p.contains("\"Autostar\", not mkgp-mount"), "{p}");
     assert_eq!(page.num("data-frames"), 0.0);
+}
+
+/// `guide-sim view` listening on `listen`, of a port nobody serves (the
+/// page is served all the same); its stderr to `stderr`.
+fn view_of_nothing(listen: &str, stderr: Stdio) -> (Group, String) {
+    let port = TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let target = format!("127.0.0.1:{port}");
+    guide_sim_with(&["view", "--tcp", &target, "--listen", listen], stderr)
+}
+
+/// The `ADDR:PORT` the ready line's URL names.
+fn served_at(ready: &str) -> String {
+    url(ready)
+        .trim_start_matches("http://")
+        .trim_end_matches('/')
+        .to_string()
+}
+
+/// Sends `request` to `addr` and reads the response to its end (the
+/// server closes): the status code and the whole response.
+fn http(addr: &str, request: &str) -> (u16, String) {
+    let mut s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    s.write_all(request.as_bytes()).unwrap();
+    let mut got = Vec::new();
+    let _ = s.read_to_end(&mut got);
+    let got = String::from_utf8_lossy(&got).into_owned();
+    let code = got
+        .split_whitespace()
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .unwrap_or(0);
+    (code, got)
+}
+
+fn first_line(response: &str) -> &str {
+    response.lines().next().unwrap_or("")
+}
+
+/// Issue 26, item 6: a page of another site that resolves its own name to
+/// 127.0.0.1 (DNS rebinding) reaches the view with its own name in `Host`;
+/// only the view's address and localhost, with its port, are answered.
+#[test]
+fn the_view_answers_only_requests_for_itself() {
+    let (_view, ready) = view_of_nothing("127.0.0.1:0", Stdio::inherit());
+    let addr = served_at(&ready);
+    let port: u16 = addr.rsplit(':').next().unwrap().parse().unwrap();
+    let get = |path: &str, version: &str, headers: &str| {
+        http(&addr, &format!("GET {path} {version}\r\n{headers}\r\n"))
+    };
+    let own = [
+        addr.clone(),
+        format!("localhost:{port}"),
+        format!("LocalHost:{port}"),
+    ];
+    let others = [
+        format!("rebound.example:{port}"),
+        "rebound.example".to_string(),
+        format!("127.0.0.1.rebound.example:{port}"),
+        format!("localhost.rebound.example:{port}"),
+        format!("127.0.0.1:{}", port.wrapping_add(1)),
+        "127.0.0.1".to_string(),
+        "localhost".to_string(),
+        String::new(),
+    ];
+    for path in ["/", "/view.js", "/view.css", "/state", "/session.csv"] {
+        for host in &own {
+            let (code, r) = get(path, "HTTP/1.1", &format!("Host: {host}\r\n"));
+            assert_eq!(code, 200, "{path} for {host}: {}", first_line(&r));
+        }
+        for host in &others {
+            let (code, r) = get(path, "HTTP/1.1", &format!("Host: {host}\r\n"));
+            assert_eq!(code, 421, "{path} for {host:?}: {}", first_line(&r));
+        }
+        // HTTP/1.1 requires Host; HTTP/1.0 has none to check (no browser
+        // sends one without it), so it is served.
+        let (code, r) = get(path, "HTTP/1.1", "");
+        assert_eq!(code, 400, "{path} without Host: {}", first_line(&r));
+        let (code, r) = get(path, "HTTP/1.0", "");
+        assert_eq!(
+            code,
+            200,
+            "{path}, HTTP/1.0 without Host: {}",
+            first_line(&r)
+        );
+        // Two of them: which one would a proxy have read?
+        let two = format!("Host: {addr}\r\nHost: rebound.example:{port}\r\n");
+        let (code, r) = get(path, "HTTP/1.1", &two);
+        assert_eq!(code, 400, "{path} with two Hosts: {}", first_line(&r));
+    }
+    // Still GET only, once the host is right.
+    let (code, r) = http(
+        &addr,
+        &format!("POST /state HTTP/1.1\r\nHost: {addr}\r\nContent-Length: 0\r\n\r\n"),
+    );
+    assert_eq!(code, 405, "{}", first_line(&r));
+}
+
+/// Issue 26, item 6: `--listen 0.0.0.0:PORT` serves every interface; the
+/// view says so on stderr, and says nothing on loopback.
+#[test]
+fn the_view_warns_when_it_listens_beyond_loopback() {
+    for (listen, warns) in [("0.0.0.0:0", true), ("127.0.0.1:0", false)] {
+        let (mut view, _) = view_of_nothing(listen, Stdio::piped());
+        let mut stderr = view.0.stderr.take().unwrap();
+        // Killed: its stderr ends, with what it said before its ready line.
+        drop(view);
+        let mut said = String::new();
+        stderr.read_to_string(&mut said).unwrap();
+        assert_eq!(
+            said.contains("warning: listening on"),
+            warns,
+            "--listen {listen}: stderr {said:?}"
+        );
+    }
+}
+
+/// Issue 26, item 7: a per-read timeout lets a client that sends a byte
+/// now and then keep its connection for ever; the head has a deadline.
+#[test]
+fn a_request_head_has_a_deadline_as_a_whole() {
+    let (_view, ready) = view_of_nothing("127.0.0.1:0", Stdio::inherit());
+    let mut s = TcpStream::connect(served_at(&ready)).unwrap();
+    s.set_nonblocking(true).unwrap();
+    let head = b"GET /state HTTP/1.1\r\nX-Slow: "
+        .iter()
+        .chain(std::iter::repeat(&b'a'));
+    let start = Instant::now();
+    let mut answer = Vec::new();
+    for &b in head {
+        if start.elapsed() > HEAD_DEADLINE + Duration::from_secs(2) {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+        let closed = s.write_all(&[b]).is_err()
+            || match s.read_to_end(&mut answer) {
+                Ok(_) => true,
+                Err(e) => e.kind() != ErrorKind::WouldBlock,
+            };
+        if closed {
+            break;
+        }
+    }
+    let held = start.elapsed();
+    println!("a client sending a byte every 100 ms was held {held:?}");
+    assert!(
+        held < HEAD_DEADLINE + Duration::from_millis(500),
+        "held {held:?}, deadline {HEAD_DEADLINE:?}"
+    );
+    let answer = String::from_utf8_lossy(&answer);
+    assert!(
+        answer.is_empty() || answer.starts_with("HTTP/1.1 408 "),
+        "{answer}"
+    );
+}
+
+/// The threads of process `pid`, and the sockets it holds (a socket's
+/// duplicates counted once).
+fn threads_and_sockets(pid: u32) -> (usize, usize) {
+    let dir = |d: &str| std::fs::read_dir(format!("/proc/{pid}/{d}")).unwrap();
+    let sockets: std::collections::HashSet<_> = dir("fd")
+        .filter_map(|e| std::fs::read_link(e.ok()?.path()).ok())
+        .filter(|l| l.to_string_lossy().starts_with("socket:"))
+        .collect();
+    (dir("task").count(), sockets.len())
+}
+
+/// Issue 26, item 7: 1,500 clients sending a byte every 2 s held 458
+/// threads of the view. Slow clients (slowloris) now hold at most
+/// `MAX_CONNECTIONS` connections and threads, and a GET is answered at
+/// once all the while.
+#[test]
+fn slow_clients_cannot_exhaust_the_view() {
+    let (view, ready) = view_of_nothing("127.0.0.1:0", Stdio::inherit());
+    let addr = served_at(&ready);
+    let pid = view.0.id();
+    std::thread::sleep(Duration::from_millis(200));
+    let (threads0, sockets0) = threads_and_sockets(pid);
+
+    const SLOW: usize = 300;
+    let head = b"GET /state HTTP/1.1\r\nHost: ";
+    let mut slow: Vec<TcpStream> = (0..SLOW)
+        .map(|_| {
+            let mut s = TcpStream::connect(&addr).unwrap();
+            s.set_nonblocking(true).unwrap();
+            let _ = s.write_all(&head[..1]);
+            s
+        })
+        .collect();
+    let start = Instant::now();
+    let (mut threads, mut sockets, mut slowest_get) = (0, 0, Duration::ZERO);
+    let mut sent = 1;
+    while start.elapsed() < Duration::from_secs(4) {
+        // A byte from each slow client every 400 ms (ignored when cut).
+        std::thread::sleep(Duration::from_millis(400));
+        sent = (sent + 1).min(head.len());
+        for s in &mut slow {
+            let _ = s.write_all(&head[sent - 1..sent]);
+        }
+        let (t, f) = threads_and_sockets(pid);
+        (threads, sockets) = (threads.max(t), sockets.max(f));
+        let asked = Instant::now();
+        let (code, r) = http(
+            &addr,
+            &format!("GET /state HTTP/1.1\r\nHost: {addr}\r\n\r\n"),
+        );
+        slowest_get = slowest_get.max(asked.elapsed());
+        assert_eq!(code, 200, "{}", first_line(&r));
+    }
+    println!(
+        "{SLOW} slow clients: at most {threads} threads (idle {threads0}), \
+         {sockets} sockets (idle {sockets0}); slowest GET {slowest_get:?}"
+    );
+    assert!(
+        threads <= threads0 + MAX_CONNECTIONS,
+        "{threads} threads, {threads0} idle, bound {MAX_CONNECTIONS}"
+    );
+    assert!(
+        sockets <= sockets0 + MAX_CONNECTIONS,
+        "{sockets} sockets, {sockets0} idle, bound {MAX_CONNECTIONS}"
+    );
+    assert!(slowest_get < Duration::from_secs(2), "{slowest_get:?}");
 }

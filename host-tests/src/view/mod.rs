@@ -9,7 +9,8 @@
 //! - [`session`]: what was heard, bounded, and the CSV of it;
 //! - [`analysis`]: the spectrum and the stage fit of the gear error;
 //! - [`state`]: all of it as the page's JSON;
-//! - [`http`]: the local server of the page (`page/`, built in).
+//! - [`http`]: the local server of the page (`page/`, built in), for
+//!   requests that name it, a bounded number at a time.
 
 pub mod analysis;
 pub mod client;
@@ -22,7 +23,7 @@ pub mod telemetry;
 
 use link::Target;
 use session::Session;
-use std::net::TcpListener;
+use std::net::{IpAddr, Ipv4Addr, Ipv6Addr, SocketAddr, TcpListener};
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 
@@ -35,12 +36,25 @@ pub fn run(
     ready: impl FnOnce(&str),
 ) -> std::io::Result<()> {
     let listener = TcpListener::bind(listen)?;
+    let at = listener.local_addr()?;
+    if !at.ip().to_canonical().is_loopback() {
+        eprintln!(
+            "guide-sim view: warning: listening on {at}, not only on this machine: \
+             whoever can reach it can read the session (read-only, nothing reaches the mount)"
+        );
+    }
+    // Every interface: the URL to open here is this machine's own address
+    // (the server answers only to the address a client reached).
+    let url_at: SocketAddr = match at.ip() {
+        IpAddr::V4(ip) if ip.is_unspecified() => (Ipv4Addr::LOCALHOST, at.port()).into(),
+        IpAddr::V6(ip) if ip.is_unspecified() => (Ipv6Addr::LOCALHOST, at.port()).into(),
+        _ => at,
+    };
     let session = Arc::new(Mutex::new(Session::new(target.to_string())));
     let port_session = Arc::clone(&session);
     let port = std::thread::spawn(move || client::run(&target, &port_session, stop));
     ready(&format!(
-        "guide-sim view: serving http://{}/ for {}",
-        listener.local_addr()?,
+        "guide-sim view: serving http://{url_at}/ for {}",
         session.lock().unwrap().target
     ));
     let served = http::run(listener, session, stop);

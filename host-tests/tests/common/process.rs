@@ -23,10 +23,16 @@ impl Drop for Group {
 
 /// Starts `guide-sim args` and waits (at most 20 s) for its ready line.
 pub fn guide_sim(args: &[&str]) -> (Group, String) {
+    guide_sim_with(args, Stdio::inherit())
+}
+
+/// As [`guide_sim`], its stderr sent to `stderr` (piped: `group.0.stderr`).
+pub fn guide_sim_with(args: &[&str], stderr: Stdio) -> (Group, String) {
     let mut g = Group(
         Command::new(env!("CARGO_BIN_EXE_guide-sim"))
             .args(args)
             .stdout(Stdio::piped())
+            .stderr(stderr)
             .process_group(0)
             .spawn()
             .expect("guide-sim runs"),
