@@ -1,16 +1,19 @@
 //! The PHD2 logs and the causal replay against INDIGO's reference traces
 //! (`indigo_ppec_dataset0N.csv`: INDIGO's single-kernel model replayed
-//! causally with control gain 0.7, prediction gain 0.5).
+//! causally with control gain 0.7, prediction gain 0.5), and what becomes
+//! of a log with values no guide log holds (issue 26).
 
 mod common;
 
+use common::bad_logs::{self, RA_GUIDE, RA_RAW, TIME};
 use common::TraceRow;
-use host_tests::data;
+use host_tests::data::{self, Error};
 use host_tests::guide_algorithm::{GuideAlgorithm, Hysteresis};
 use host_tests::models::Model;
 use host_tests::phd2_log::{self, GuideLog};
 use host_tests::replay;
 use mkgp_mount::model::guider::{Guider, GuiderConfig};
+use std::path::Path;
 
 const LOGS: [&str; 5] = [
     "dataset01",
@@ -210,4 +213,66 @@ fn mkgp_chooses_the_reactive_law() {
             "{name}: {gain:.3} % vs {want} %"
         );
     }
+}
+
+/// What the replay makes of `log`, for a failure message.
+fn figures(log: &GuideLog) -> String {
+    let rms = |r: Result<replay::ReplayResult, Error>| r.map(|r| r.rms);
+    format!(
+        "{} frames, hysteresis RMS {:?} px, MKGP RMS {:?} px",
+        log.frames.len(),
+        rms(replay::run(log, &mut Hysteresis::phd2_baseline())),
+        rms(replay::run_model(log, Model::Mkgp)),
+    )
+}
+
+/// The error `bad` must get: at its first absurd line, about `what`. An
+/// accepted log fails the test with the figures its replay gives.
+fn assert_refused(bad: &bad_logs::BadLog, what: &str) {
+    match phd2_log::parse(&bad.text, Path::new("bad.txt")) {
+        Ok(log) => panic!("{what}: accepted, {}", figures(&log)),
+        Err(e) => {
+            assert_eq!(e.line, Some(bad.line), "{what}: {e}");
+            assert!(e.message.starts_with(what), "{e}");
+        }
+    }
+}
+
+/// Issue 26, item 5: one value of 1e300 gave an RMS of `inf` and gains of
+/// NaN. No camera frame holds such a distance, no guiding run such a time.
+#[test]
+fn a_value_of_1e300_is_refused_naming_its_line() {
+    for (col, what) in [
+        (RA_RAW, "RARawDistance"),
+        (RA_GUIDE, "RAGuideDistance"),
+        (TIME, "Time"),
+    ] {
+        assert_refused(&bad_logs::value(col, "1e300"), what);
+    }
+}
+
+/// Issue 26, item 5: `DITHER by 1e300` gave an RMS of `inf`.
+#[test]
+fn a_dither_by_1e300_is_refused_naming_its_line() {
+    assert_refused(&bad_logs::dither("1e300"), "DITHER x");
+}
+
+/// Issue 26, item 5: RARawDistance 1e6 in 12 rows gave an RMS of 172,479
+/// px (163,546 px on this log).
+#[test]
+fn a_raw_distance_of_1e6_is_refused_naming_its_line() {
+    assert_refused(&bad_logs::raw_1e6_in_12_rows(), "RARawDistance");
+}
+
+/// Issue 26, item 5: `Time` running backwards through a section gave the
+/// models 15.5 px against hysteresis 0.48 px (4.3 px against 0.16 px here).
+#[test]
+fn time_running_backwards_is_refused_naming_its_line() {
+    assert_refused(&bad_logs::time_backwards(), "Time");
+}
+
+/// Issue 26, item 5: `Exposure = 1e300 ms` was accepted.
+#[test]
+fn an_exposure_of_1e300_ms_is_refused_naming_its_line() {
+    assert_refused(&bad_logs::exposure_1e300(), "Exposure");
 }
