@@ -11,15 +11,20 @@
 //!
 //! Values a guide log cannot hold are errors (see [`limits`]): distances and
 //! dithers beyond any camera frame, exposures beyond minutes, times beyond a
-//! week or running back within a section. A section runs from one
-//! `Frame,Time,...` header to the next.
+//! week or running back within a section. A row whose star PHD2 could not
+//! have found, beyond its search region from the last star found, is a frame
+//! the guider lost: it is dropped as PHD2's own DROP rows are (see
+//! [`search_region`]). A section runs from one `Frame,Time,...` header to the
+//! next.
 //!
 //! Errors name the file and line: `file:line: message`.
 
 pub mod limits;
+pub mod search_region;
 
 use crate::data::{parse_f64, read_text, Error};
 use limits::Clock;
+use search_region::StarTrack;
 use std::path::{Path, PathBuf};
 
 /// One guide frame.
@@ -136,6 +141,7 @@ struct Section {
     header_line: usize,
     columns: Columns,
     clock: Clock,
+    star: StarTrack,
 }
 
 impl Section {
@@ -144,11 +150,12 @@ impl Section {
             header_line,
             columns,
             clock: Clock::default(),
+            star: StarTrack::default(),
         }
     }
 
     /// The frame of row `fields` (number `frame`, at `line`), or `None` for
-    /// a frame the guider dropped (no RARawDistance).
+    /// a frame the guider dropped (no RARawDistance) or would have lost.
     fn frame(
         &mut self,
         fields: &[String],
@@ -167,14 +174,15 @@ impl Section {
         if fields.get(c.ra_raw).is_none_or(|f| f.trim().is_empty()) {
             return Ok(None);
         }
-        Ok(Some(Frame {
+        let f = Frame {
             line,
             frame,
             time_s,
             ra_raw: num(c.ra_raw, "RARawDistance", limits::distance)?,
             ra_guide: num(c.ra_guide, "RAGuideDistance", limits::distance)?,
             snr: num(c.snr, "SNR", parse_f64)?,
-        }))
+        };
+        Ok(self.star.found(f.ra_raw).then_some(f))
     }
 }
 
@@ -197,12 +205,19 @@ pub fn parse(text: &str, path: &Path) -> Result<GuideLog, Error> {
             section = Some(Section::new(n, columns));
         } else if let Some(rest) = line.strip_prefix("INFO: DITHER by") {
             let (x, y) = parse_dither(rest).map_err(|m| err(n, m))?;
+            if let Some(s) = &mut section {
+                s.star.dithered(x, y);
+            }
             dithers.push(Dither {
                 line: n,
                 next_frame: frames.len(),
                 x,
                 y,
             });
+        } else if line.starts_with("INFO: SET LOCK POSITION") {
+            if let Some(s) = &mut section {
+                s.star.lock_set();
+            }
         } else if line
             .split(',')
             .next()

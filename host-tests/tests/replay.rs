@@ -276,3 +276,23 @@ fn time_running_backwards_is_refused_naming_its_line() {
 fn an_exposure_of_1e300_ms_is_refused_naming_its_line() {
     assert_refused(&bad_logs::exposure_1e300(), "Exposure");
 }
+
+/// A star measured thousands of px from where it was a frame before is
+/// none PHD2 found: it looks for the star only within its search region.
+/// Such a row is a frame the guider lost, exactly as the DROP row PHD2
+/// writes for one.
+#[test]
+fn a_star_beyond_the_search_region_is_a_dropped_frame() {
+    let (jumps, drops) = bad_logs::jumps_and_drops(5000.0);
+    let parse =
+        |text: &str| phd2_log::parse(text, Path::new("x.txt")).unwrap_or_else(|e| panic!("{e}"));
+    let (jumps, drops) = (parse(&jumps), parse(&drops));
+    assert_eq!(
+        jumps.frames.len(),
+        drops.frames.len(),
+        "jumps: {}; drops: {}",
+        figures(&jumps),
+        figures(&drops)
+    );
+    assert_eq!(jumps, drops);
+}

@@ -117,3 +117,19 @@ pub fn exposure_1e300() -> BadLog {
     log.lines[at] = "Exposure = 1e300 ms".into();
     log.bad(at)
 }
+
+/// RARawDistance `px` in 12 rows spread over the log (a star the guider
+/// would have lost: far beyond its search region), and the same log with
+/// those rows written as PHD2 writes a frame it dropped.
+pub fn jumps_and_drops(px: f64) -> (String, String) {
+    let mut jumps = Log::dataset03();
+    let mut drops = Log::dataset03();
+    for k in (0..12).map(|k| 10 + 50 * k) {
+        jumps.set(k, RA_RAW, &format!("{px:.3}"));
+        let i = drops.rows[k];
+        let (frame, time) = (drops.field(k, 0), drops.field(k, TIME));
+        drops.lines[i] =
+            format!("{frame},{time},\"DROP\",,,,,,,,,,,,,0,0.00,3,\"Star lost - low mass\"");
+    }
+    (jumps.text(), drops.text())
+}
