@@ -11,11 +11,11 @@
 //!
 //! Values a guide log cannot hold are errors (see [`limits`]): distances and
 //! dithers beyond any camera frame, exposures beyond minutes, times beyond a
-//! week or running back within a section. A row whose star PHD2 could not
-//! have found, beyond its search region from the last star found, is a frame
-//! the guider lost: it is dropped as PHD2's own DROP rows are (see
-//! [`search_region`]). A section runs from one `Frame,Time,...` header to the
-//! next.
+//! week or running back within a section, a correction far beyond the error
+//! it corrects. A row whose star PHD2 could not have found, beyond its
+//! search region from the last star found, is a frame the guider lost: it is
+//! dropped as PHD2's own DROP rows are (see [`search_region`]). A section
+//! runs from one `Frame,Time,...` header to the next.
 //!
 //! Errors name the file and line: `file:line: message`.
 
@@ -156,11 +156,13 @@ impl Section {
 
     /// The frame of row `fields` (number `frame`, at `line`), or `None` for
     /// a frame the guider dropped (no RARawDistance) or would have lost.
+    /// `dithered`: the dither amounts since the last frame, px.
     fn frame(
         &mut self,
         fields: &[String],
         line: usize,
         frame: u64,
+        dithered: f64,
     ) -> Result<Option<Frame>, String> {
         let c = self.columns;
         let num = |idx: usize, name: &str, read: fn(&str, &str) -> Result<f64, String>| {
@@ -182,7 +184,11 @@ impl Section {
             ra_guide: num(c.ra_guide, "RAGuideDistance", limits::distance)?,
             snr: num(c.snr, "SNR", parse_f64)?,
         };
-        Ok(self.star.found(f.ra_raw).then_some(f))
+        if !self.star.found(f.ra_raw) {
+            return Ok(None);
+        }
+        limits::correction(f.ra_raw, f.ra_guide + dithered)?;
+        Ok(Some(f))
     }
 }
 
@@ -233,7 +239,16 @@ pub fn parse(text: &str, path: &Path) -> Result<GuideLog, Error> {
                     "guide-frame row before any `Frame,Time,...` header".into(),
                 ));
             };
-            if let Some(f) = s.frame(&fields, n, frame).map_err(|m| err(n, m))? {
+            let dithered = dithers
+                .iter()
+                .rev()
+                .take_while(|d| d.next_frame == frames.len())
+                .map(|d| d.x)
+                .sum();
+            if let Some(f) = s
+                .frame(&fields, n, frame, dithered)
+                .map_err(|m| err(n, m))?
+            {
                 frames.push(f);
             }
         }

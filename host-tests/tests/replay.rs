@@ -277,6 +277,18 @@ fn an_exposure_of_1e300_ms_is_refused_naming_its_line() {
     assert_refused(&bad_logs::exposure_1e300(), "Exposure");
 }
 
+/// A correction thousands of px larger than the error it corrects is not
+/// what moved the mount (a guide algorithm corrects what it measured), yet
+/// the replay would take it for the gear's own motion. Refused at its frame,
+/// whether the row's RAGuideDistance or a dither before the row says so.
+#[test]
+fn a_correction_far_beyond_the_error_is_refused_naming_its_line() {
+    assert_refused(&bad_logs::value(RA_GUIDE, "5000"), "RAGuideDistance");
+    let mut dither = bad_logs::dither("5000");
+    dither.line += 1; // the frame after it
+    assert_refused(&dither, "RAGuideDistance");
+}
+
 /// A star measured thousands of px from where it was a frame before is
 /// none PHD2 found: it looks for the star only within its search region.
 /// Such a row is a frame the guider lost, exactly as the DROP row PHD2

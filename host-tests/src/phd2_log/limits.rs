@@ -3,6 +3,7 @@
 //! parser refuses it (`file:line: what`) rather than let the replay turn it
 //! into absurd figures.
 
+use super::search_region::MAX_STAR_STEP_PX;
 use crate::data::parse_f64;
 
 /// The farthest a star can be from the lock position, and the largest
@@ -60,6 +61,23 @@ pub fn exposure_s(rest: &str) -> Result<f64, String> {
     }
 }
 
+/// The correction the replay takes for a frame found at `ra_raw` px: its
+/// RAGuideDistance plus the dithers before it (`correction` px). A guide
+/// algorithm corrects the error it measured, plus at most what it predicts
+/// the gear to move over one frame, which is less than the star can move
+/// between frames ([`MAX_STAR_STEP_PX`]; in the five logs it is within
+/// 3 px of the error). A larger one was not what moved the mount.
+pub fn correction(ra_raw: f64, correction: f64) -> Result<(), String> {
+    if correction.abs() <= ra_raw.abs() + MAX_STAR_STEP_PX {
+        Ok(())
+    } else {
+        Err(format!(
+            "RAGuideDistance: a correction of {correction} px (with any dither before it) \
+             for an error of {ra_raw} px: no guide algorithm corrects {MAX_STAR_STEP_PX:.1} px more than it measured"
+        ))
+    }
+}
+
 /// The frame times of one guiding section: each later than the one before,
 /// as PHD2 writes them (a clock that runs back is no guiding run; the
 /// guide algorithms would take it for the gear's time).
@@ -100,6 +118,20 @@ mod tests {
         assert!(distance("nan", "d")
             .unwrap_err()
             .contains("not a finite number"));
+    }
+
+    #[test]
+    fn corrections_of_the_error_measured() {
+        for (m, c) in [(0.0, MAX_STAR_STEP_PX), (-2.0, 2.0 + MAX_STAR_STEP_PX)] {
+            assert_eq!(correction(m, c), Ok(()));
+            assert_eq!(correction(m, -c), Ok(()));
+            assert!(correction(m, c + 0.001).is_err());
+        }
+        assert_eq!(
+            correction(0.25, -5000.0).unwrap_err(),
+            "RAGuideDistance: a correction of -5000 px (with any dither before it) for an error \
+             of 0.25 px: no guide algorithm corrects 70.7 px more than it measured"
+        );
     }
 
     #[test]
