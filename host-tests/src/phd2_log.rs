@@ -9,9 +9,22 @@
 //! logs at hand. `INFO: DITHER by X, Y, ...` lines are kept with the index of
 //! the frame that follows them.
 //!
+//! Values a guide log cannot hold are errors (see [`limits`]): distances and
+//! dithers beyond any camera frame, exposures beyond minutes, times beyond a
+//! week or running back within a section, a correction far beyond the error
+//! it corrects. A row whose star PHD2 could not have found, beyond its
+//! search region from the last star found, is a frame the guider lost: it is
+//! dropped as PHD2's own DROP rows are (see [`search_region`]). A section
+//! runs from one `Frame,Time,...` header to the next.
+//!
 //! Errors name the file and line: `file:line: message`.
 
+pub mod limits;
+pub mod search_region;
+
 use crate::data::{parse_f64, read_text, Error};
+use limits::Clock;
+use search_region::StarTrack;
 use std::path::{Path, PathBuf};
 
 /// One guide frame.
@@ -114,51 +127,103 @@ fn split_csv(line: &str) -> Vec<String> {
     out
 }
 
-/// Parse `Exposure = 2000 ms` into seconds.
-fn parse_exposure(rest: &str) -> Result<f64, String> {
-    let value = rest.trim().strip_suffix("ms").map(str::trim);
-    match value.map(|v| parse_f64(v, "Exposure")) {
-        Some(Ok(ms)) if ms > 0.0 => Ok(ms / 1000.0),
-        _ => Err(format!(
-            "bad exposure {:?} (expected `Exposure = N ms`, N > 0)",
-            rest.trim()
-        )),
-    }
-}
-
 /// Parse the `X, Y` of `INFO: DITHER by X, Y, new lock pos = ...`.
 fn parse_dither(rest: &str) -> Result<(f64, f64), String> {
     let mut it = rest.split(',');
-    let x = parse_f64(it.next().unwrap_or(""), "DITHER x")?;
-    let y = parse_f64(it.next().unwrap_or(""), "DITHER y")?;
+    let x = limits::distance(it.next().unwrap_or(""), "DITHER x")?;
+    let y = limits::distance(it.next().unwrap_or(""), "DITHER y")?;
     Ok((x, y))
+}
+
+/// What one guiding section's rows are read with and checked against.
+struct Section {
+    /// The line of its `Frame,Time,...` header.
+    header_line: usize,
+    columns: Columns,
+    clock: Clock,
+    star: StarTrack,
+}
+
+impl Section {
+    fn new(header_line: usize, columns: Columns) -> Self {
+        Section {
+            header_line,
+            columns,
+            clock: Clock::default(),
+            star: StarTrack::default(),
+        }
+    }
+
+    /// The frame of row `fields` (number `frame`, at `line`), or `None` for
+    /// a frame the guider dropped (no RARawDistance) or would have lost.
+    /// `dithered`: the dither amounts since the last frame, px.
+    fn frame(
+        &mut self,
+        fields: &[String],
+        line: usize,
+        frame: u64,
+        dithered: f64,
+    ) -> Result<Option<Frame>, String> {
+        let c = self.columns;
+        let num = |idx: usize, name: &str, read: fn(&str, &str) -> Result<f64, String>| {
+            let field = fields
+                .get(idx)
+                .ok_or_else(|| format!("row has {} fields, no {name} column", fields.len()))?;
+            read(field, name)
+        };
+        let time_s = num(c.time, "Time", limits::time)?;
+        self.clock.tick(time_s, line)?;
+        if fields.get(c.ra_raw).is_none_or(|f| f.trim().is_empty()) {
+            return Ok(None);
+        }
+        let f = Frame {
+            line,
+            frame,
+            time_s,
+            ra_raw: num(c.ra_raw, "RARawDistance", limits::distance)?,
+            ra_guide: num(c.ra_guide, "RAGuideDistance", limits::distance)?,
+            snr: num(c.snr, "SNR", parse_f64)?,
+        };
+        if !self.star.found(f.ra_raw) {
+            return Ok(None);
+        }
+        limits::correction(f.ra_raw, f.ra_guide + dithered)?;
+        Ok(Some(f))
+    }
 }
 
 /// Parse a log; `path` names the file in errors.
 pub fn parse(text: &str, path: &Path) -> Result<GuideLog, Error> {
     let err = |line: usize, msg: String| Error::new(path, Some(line), msg);
     let mut exposure_s = None;
-    let mut columns: Option<(usize, Columns)> = None;
+    let mut section: Option<Section> = None;
     let mut frames = Vec::new();
     let mut dithers = Vec::new();
     for (i, raw) in text.lines().enumerate() {
         let n = i + 1;
         let line = raw.trim();
         if let Some(rest) = line.strip_prefix("Exposure =") {
-            let e = parse_exposure(rest).map_err(|m| err(n, m))?;
+            let e = limits::exposure_s(rest).map_err(|m| err(n, m))?;
             exposure_s.get_or_insert(e);
         } else if line.starts_with("Frame,") {
             let fields = split_csv(line);
-            let c = Columns::from_header(&fields).map_err(|m| err(n, m))?;
-            columns = Some((n, c));
+            let columns = Columns::from_header(&fields).map_err(|m| err(n, m))?;
+            section = Some(Section::new(n, columns));
         } else if let Some(rest) = line.strip_prefix("INFO: DITHER by") {
             let (x, y) = parse_dither(rest).map_err(|m| err(n, m))?;
+            if let Some(s) = &mut section {
+                s.star.dithered(x, y);
+            }
             dithers.push(Dither {
                 line: n,
                 next_frame: frames.len(),
                 x,
                 y,
             });
+        } else if line.starts_with("INFO: SET LOCK POSITION") {
+            if let Some(s) = &mut section {
+                s.star.lock_set();
+            }
         } else if line
             .split(',')
             .next()
@@ -168,39 +233,30 @@ pub fn parse(text: &str, path: &Path) -> Result<GuideLog, Error> {
             let frame: u64 = fields[0]
                 .parse()
                 .map_err(|_| err(n, format!("frame number out of range: {:?}", fields[0])))?;
-            let Some((_, c)) = columns else {
+            let Some(s) = &mut section else {
                 return Err(err(
                     n,
                     "guide-frame row before any `Frame,Time,...` header".into(),
                 ));
             };
-            let get = |idx: usize| fields.get(idx).map(|s| s.trim()).unwrap_or("");
-            if get(c.ra_raw).is_empty() {
-                continue; // dropped frame: no measurement
+            let dithered = dithers
+                .iter()
+                .rev()
+                .take_while(|d| d.next_frame == frames.len())
+                .map(|d| d.x)
+                .sum();
+            if let Some(f) = s
+                .frame(&fields, n, frame, dithered)
+                .map_err(|m| err(n, m))?
+            {
+                frames.push(f);
             }
-            let num = |idx: usize, name: &str| -> Result<f64, Error> {
-                if idx >= fields.len() {
-                    return Err(err(
-                        n,
-                        format!("row has {} fields, no {name} column", fields.len()),
-                    ));
-                }
-                parse_f64(get(idx), name).map_err(|m| err(n, m))
-            };
-            frames.push(Frame {
-                line: n,
-                frame,
-                time_s: num(c.time, "Time")?,
-                ra_raw: num(c.ra_raw, "RARawDistance")?,
-                ra_guide: num(c.ra_guide, "RAGuideDistance")?,
-                snr: num(c.snr, "SNR")?,
-            });
         }
     }
     if frames.is_empty() {
-        return Err(match columns {
-            Some((n, _)) => err(
-                n,
+        return Err(match section {
+            Some(s) => err(
+                s.header_line,
                 "no guide frames (rows with a frame number and RARawDistance)".into(),
             ),
             None => Error::new(path, None, "no `Frame,Time,...` guide-frame header"),
@@ -229,7 +285,7 @@ mod tests {
         "1,2.250,\"Mount\",0.856,-0.494,-0.899,-0.308,-0.540,0.000,227,E,0,,,,1762,23.05,0\n";
     const ROW2: &str =
         "2,4.109,\"Mount\",0.159,-0.340,-0.191,-0.300,-0.115,0.000,48,E,0,,,,1463,21.04,0\n";
-    const DROP: &str = "3,6.0,\"DROP\",,,,,,,,,,,,,1486,21.65,6,\"Star lost, mass changed\"\n";
+    const DROP: &str = "3,3.2,\"DROP\",,,,,,,,,,,,,1486,21.65,6,\"Star lost, mass changed\"\n";
 
     fn p(text: &str) -> Result<GuideLog, Error> {
         parse(text, Path::new("x.txt"))

@@ -1,5 +1,8 @@
 //! The guide-sim binary: CSV headers, errors and exit status.
 
+mod common;
+
+use common::bad_logs::{self, RA_RAW};
 use std::path::PathBuf;
 use std::process::{Command, Output};
 
@@ -116,6 +119,28 @@ fn replay_bad_log_fails_but_others_run() {
         lines[1].starts_with("performance_dataset03,664,0.1588,"),
         "{out}"
     );
+}
+
+/// Issue 26, item 5: each of these logs was replayed into absurd figures
+/// with exit status 0. Each is now a bad log: status 1, `file:line: what`
+/// on stderr, no row on stdout.
+#[test]
+fn replay_of_absurd_values_fails_naming_file_and_line() {
+    for (name, bad) in [
+        ("raw_1e300", bad_logs::value(RA_RAW, "1e300")),
+        ("dither_1e300", bad_logs::dither("1e300")),
+        ("raw_1e6_in_12_rows", bad_logs::raw_1e6_in_12_rows()),
+        ("time_backwards", bad_logs::time_backwards()),
+        ("exposure_1e300", bad_logs::exposure_1e300()),
+    ] {
+        let path = scratch(&format!("{name}.txt"));
+        std::fs::write(&path, &bad.text).unwrap();
+        let o = guide_sim(&["replay", path.to_str().unwrap(), "--csv"]);
+        assert_eq!(o.status.code(), Some(1), "{name}: {}", stdout(&o));
+        let at = format!("{}:{}: ", path.display(), bad.line);
+        assert!(stderr(&o).contains(&at), "{name}: {}", stderr(&o));
+        assert_eq!(stdout(&o).lines().count(), 1, "{name}: {}", stdout(&o));
+    }
 }
 
 /// A usage error: exit status 2 (clap's), nothing on stdout, and stderr

@@ -3,11 +3,18 @@
 //! `MKGP_RANDOMIZED_SCALE=K` multiplies the iteration counts by K for a
 //! longer run (host-tests/README.md).
 
+mod common;
+
+use host_tests::guide_algorithm::Hysteresis;
+use host_tests::models::Model;
+use host_tests::phd2_log::{self, limits::MAX_DISTANCE_PX};
+use host_tests::replay;
 use mkgp_mount::model::guider::{Guider, GuiderConfig};
 use mkgp_mount::model::numeric::scalar::Scalar;
 use mkgp_mount::mount::st4::{Axis, Line, St4, St4Counters, St4Event};
 use mkgp_mount::testing::SplitMix64;
 use std::f64::consts::PI;
+use std::path::Path;
 
 use host_tests::noise::randomized_scale as scale;
 
@@ -210,5 +217,113 @@ fn guider_storms_f32_n2() {
 fn guider_storms_f64_n1() {
     for seed in 0..2 * scale() {
         guider_storm::<f64, 1>(seed);
+    }
+}
+
+/// What a mutation may write in place of a field: absurd, negative, not a
+/// number, empty, or a plausible value.
+fn random_field(rng: &mut SplitMix64) -> String {
+    let magnitude = 10f64.powi(rng.below(12) as i32 - 3);
+    match rng.below(8) {
+        0 => [
+            "1e300", "-1e300", "1e6", "-1e6", "nan", "inf", "-inf", "1e-300",
+        ][rng.below(8) as usize]
+            .into(),
+        1 => String::new(),
+        2 => "x1.5".into(),
+        3 => format!("{:.3}", -magnitude * rng.uniform()),
+        _ => format!("{:.3}", magnitude * rng.f64_in(-1.0, 1.0)),
+    }
+}
+
+/// One random change to a log's lines, of the kinds a corrupt or hand-made
+/// log has: a field replaced, a line deleted, repeated, swapped with the
+/// next or cut short, a DITHER or SET LOCK POSITION line inserted, the
+/// exposure changed.
+fn mutate(rng: &mut SplitMix64, lines: &mut Vec<String>) {
+    let i = rng.below(lines.len() as u64) as usize;
+    match rng.below(8) {
+        0 | 1 => {
+            let mut fields: Vec<String> = lines[i].split(',').map(str::to_owned).collect();
+            let k = rng.below(fields.len() as u64) as usize;
+            fields[k] = random_field(rng);
+            lines[i] = fields.join(",");
+        }
+        2 => {
+            lines.remove(i);
+        }
+        3 => lines.insert(i, lines[i].clone()),
+        4 => {
+            let j = (i + 1).min(lines.len() - 1);
+            lines.swap(i, j);
+        }
+        5 => {
+            let cut = rng.below(lines[i].len() as u64 + 1) as usize;
+            lines[i].truncate(cut);
+        }
+        6 => {
+            let (x, y) = (random_field(rng), random_field(rng));
+            let line = if rng.below(2) == 0 {
+                format!("INFO: DITHER by {x}, {y}, new lock pos = 444.003, 198.480")
+            } else {
+                "INFO: SET LOCK POSITION, new lock pos = 444.003, 198.480".into()
+            };
+            lines.insert(i, line);
+        }
+        _ => {
+            if let Some(e) = lines.iter_mut().find(|l| l.starts_with("Exposure =")) {
+                *e = format!("Exposure = {} ms", random_field(rng));
+            }
+        }
+    }
+}
+
+/// Random mutations of a real log (its first 200 frames): the parser and
+/// the replay never panic, and each mutated log is either refused with an
+/// error naming its line (or what the whole file lacks) or replayed into
+/// finite figures within the camera frame the parser's limits allow.
+#[test]
+fn phd2_log_mutations() {
+    let text = common::bad_logs::dataset03();
+    let lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    let end = lines.iter().position(|l| l.starts_with("201,")).unwrap();
+    let path = Path::new("mutated.txt");
+    let mut rng = SplitMix64::new(26);
+    for iteration in 0..150 * scale() {
+        let mut log = lines[..end].to_vec();
+        for _ in 0..1 + rng.below(3) {
+            mutate(&mut rng, &mut log);
+        }
+        let changed: Vec<&String> = log.iter().filter(|l| !lines.contains(l)).collect();
+        let parsed = match phd2_log::parse(&log.join("\n"), path) {
+            Ok(parsed) => parsed,
+            Err(e) => {
+                assert!(
+                    e.line.is_some_and(|n| n <= log.len()) || e.message.starts_with("no "),
+                    "iteration {iteration}: {e}; changed lines {changed:?}"
+                );
+                continue;
+            }
+        };
+        for (name, run) in [
+            (
+                "hysteresis",
+                replay::run(&parsed, &mut Hysteresis::phd2_baseline()),
+            ),
+            ("MKGP", replay::run_model(&parsed, Model::Mkgp)),
+        ] {
+            match run {
+                Ok(r) => assert!(
+                    r.rms.is_finite() && r.rms <= MAX_DISTANCE_PX,
+                    "iteration {iteration}: {name} RMS {} px over {} frames; changed lines {changed:?}",
+                    r.rms,
+                    r.frames
+                ),
+                Err(e) => assert!(
+                    e.message.contains("at least 3"),
+                    "iteration {iteration}: {e}; changed lines {changed:?}"
+                ),
+            }
+        }
     }
 }

@@ -1,16 +1,19 @@
 //! The PHD2 logs and the causal replay against INDIGO's reference traces
 //! (`indigo_ppec_dataset0N.csv`: INDIGO's single-kernel model replayed
-//! causally with control gain 0.7, prediction gain 0.5).
+//! causally with control gain 0.7, prediction gain 0.5), and what becomes
+//! of a log with values no guide log holds (issue 26).
 
 mod common;
 
+use common::bad_logs::{self, RA_GUIDE, RA_RAW, TIME};
 use common::TraceRow;
-use host_tests::data;
+use host_tests::data::{self, Error};
 use host_tests::guide_algorithm::{GuideAlgorithm, Hysteresis};
 use host_tests::models::Model;
 use host_tests::phd2_log::{self, GuideLog};
 use host_tests::replay;
 use mkgp_mount::model::guider::{Guider, GuiderConfig};
+use std::path::Path;
 
 const LOGS: [&str; 5] = [
     "dataset01",
@@ -210,4 +213,98 @@ fn mkgp_chooses_the_reactive_law() {
             "{name}: {gain:.3} % vs {want} %"
         );
     }
+}
+
+/// What the replay makes of `log`, for a failure message.
+fn figures(log: &GuideLog) -> String {
+    let rms = |r: Result<replay::ReplayResult, Error>| r.map(|r| r.rms);
+    format!(
+        "{} frames, hysteresis RMS {:?} px, MKGP RMS {:?} px",
+        log.frames.len(),
+        rms(replay::run(log, &mut Hysteresis::phd2_baseline())),
+        rms(replay::run_model(log, Model::Mkgp)),
+    )
+}
+
+/// The error `bad` must get: at its first absurd line, about `what`. An
+/// accepted log fails the test with the figures its replay gives.
+fn assert_refused(bad: &bad_logs::BadLog, what: &str) {
+    match phd2_log::parse(&bad.text, Path::new("bad.txt")) {
+        Ok(log) => panic!("{what}: accepted, {}", figures(&log)),
+        Err(e) => {
+            assert_eq!(e.line, Some(bad.line), "{what}: {e}");
+            assert!(e.message.starts_with(what), "{e}");
+        }
+    }
+}
+
+/// Issue 26, item 5: one value of 1e300 gave an RMS of `inf` and gains of
+/// NaN. No camera frame holds such a distance, no guiding run such a time.
+#[test]
+fn a_value_of_1e300_is_refused_naming_its_line() {
+    for (col, what) in [
+        (RA_RAW, "RARawDistance"),
+        (RA_GUIDE, "RAGuideDistance"),
+        (TIME, "Time"),
+    ] {
+        assert_refused(&bad_logs::value(col, "1e300"), what);
+    }
+}
+
+/// Issue 26, item 5: `DITHER by 1e300` gave an RMS of `inf`.
+#[test]
+fn a_dither_by_1e300_is_refused_naming_its_line() {
+    assert_refused(&bad_logs::dither("1e300"), "DITHER x");
+}
+
+/// Issue 26, item 5: RARawDistance 1e6 in 12 rows gave an RMS of 172,479
+/// px (163,546 px on this log).
+#[test]
+fn a_raw_distance_of_1e6_is_refused_naming_its_line() {
+    assert_refused(&bad_logs::raw_1e6_in_12_rows(), "RARawDistance");
+}
+
+/// Issue 26, item 5: `Time` running backwards through a section gave the
+/// models 15.5 px against hysteresis 0.48 px (4.3 px against 0.16 px here).
+#[test]
+fn time_running_backwards_is_refused_naming_its_line() {
+    assert_refused(&bad_logs::time_backwards(), "Time");
+}
+
+/// Issue 26, item 5: `Exposure = 1e300 ms` was accepted.
+#[test]
+fn an_exposure_of_1e300_ms_is_refused_naming_its_line() {
+    assert_refused(&bad_logs::exposure_1e300(), "Exposure");
+}
+
+/// A correction thousands of px larger than the error it corrects is not
+/// what moved the mount (a guide algorithm corrects what it measured), yet
+/// the replay would take it for the gear's own motion. Refused at its frame,
+/// whether the row's RAGuideDistance or a dither before the row says so.
+#[test]
+fn a_correction_far_beyond_the_error_is_refused_naming_its_line() {
+    assert_refused(&bad_logs::value(RA_GUIDE, "5000"), "RAGuideDistance");
+    let mut dither = bad_logs::dither("5000");
+    dither.line += 1; // the frame after it
+    assert_refused(&dither, "RAGuideDistance");
+}
+
+/// A star measured thousands of px from where it was a frame before is
+/// none PHD2 found: it looks for the star only within its search region.
+/// Such a row is a frame the guider lost, exactly as the DROP row PHD2
+/// writes for one.
+#[test]
+fn a_star_beyond_the_search_region_is_a_dropped_frame() {
+    let (jumps, drops) = bad_logs::jumps_and_drops(5000.0);
+    let parse =
+        |text: &str| phd2_log::parse(text, Path::new("x.txt")).unwrap_or_else(|e| panic!("{e}"));
+    let (jumps, drops) = (parse(&jumps), parse(&drops));
+    assert_eq!(
+        jumps.frames.len(),
+        drops.frames.len(),
+        "jumps: {}; drops: {}",
+        figures(&jumps),
+        figures(&drops)
+    );
+    assert_eq!(jumps, drops);
 }

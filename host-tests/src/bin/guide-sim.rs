@@ -61,6 +61,8 @@ enum Command {
     /// PHD2's causal replay of guide logs (default: all logs in
     /// host-tests/data/phd2-logs): hysteresis 0.7 baseline vs ppec and mkgp
     /// (control gain 0.7, prediction gain 0.5, dt = the log's exposure).
+    /// A value no guide log can hold fails that log (file:line); a star PHD2
+    /// would have lost (beyond its search region) is a dropped frame.
     #[command(verbatim_doc_comment)]
     Replay(ReplayArgs),
     /// Cost of one guide frame of the GP guider: host time, Cortex-M4 instructions

@@ -12,4 +12,5 @@ pub fn trace(name: &str) -> Vec<TraceRow> {
     data::load_trace(&data::reference_trace(name)).unwrap_or_else(|e| panic!("{e}"))
 }
 
+pub mod bad_logs;
 pub mod process;
