@@ -5,7 +5,7 @@ use crate::mount::config::{Field, MountConfig};
 use crate::mount::learner::FIRMWARE_STAGES;
 use crate::port::coords::{Dec, Equatorial, Ra};
 use crate::port::framer::{COMMAND_CAPACITY, COMMAND_TIMEOUT_US};
-use crate::port::interpreter::Interpreter;
+use crate::port::interpreter::{Interpreter, STORE_REPLY_TIMEOUT_US};
 use crate::port::mount_port::{Axis, GuidePulse, Line, ManualRate, PecState, Stage};
 use crate::port::telemetry::TelemetryFrame;
 use crate::port::ReplySink;
@@ -312,23 +312,37 @@ fn own_configuration() {
     assert_eq!(listed, Field::ALL.len());
     assert_eq!(b.ask(":~KD#"), "1");
     assert_eq!(b.mount.config, MountConfig::default());
-    assert_eq!(b.ask(":~KW#"), "1");
+    // A save's reply waits for the store's outcome.
+    assert_eq!(b.ask(":~KW#"), "");
     assert_eq!(b.mount.calls.last(), Some(&Call::SaveConfig));
+    assert_eq!(b.stored(true), "1");
 }
 
 /// Park and unpark answer nothing (INDI reads no reply); `:GU#` shows the
-/// park; `:~W#` asks for a model save.
+/// park; `:~W#` asks for a model save and answers its outcome: one at a
+/// time, other commands answered meanwhile, `0` if none comes in time.
 #[test]
 fn park_unpark_and_model_save() {
     let mut b = Bench::new();
     assert_eq!(b.ask(":hP#"), "");
     assert_eq!(b.ask(":GU#"), "NP~#");
-    assert_eq!(b.ask(":hR#:~W#"), "1");
-    assert_eq!(b.ask(":GU#"), "Np~#");
+    assert_eq!(b.ask(":hR#:~W#"), "");
+    assert!(b.port.awaits_store());
+    assert_eq!(b.ask(":GU#:~W#"), "Np~#0");
     assert_eq!(
         b.mount.calls[b.mount.calls.len() - 3..],
         [Call::Park, Call::Unpark, Call::SaveModel]
     );
+    assert_eq!(b.stored(false), "0");
+    assert!(!b.port.awaits_store());
+    assert_eq!(b.stored(true), "");
+    assert_eq!(b.ask(":~W#"), "");
+    b.now_us += STORE_REPLY_TIMEOUT_US;
+    assert_eq!(b.ask(""), "0");
+    assert_eq!(b.port.counters().store_timeouts, 1);
+    // Refused by the mount (no store): `0` at once.
+    b.mount.store = false;
+    assert_eq!(b.ask(":~W#:~KW#"), "00");
 }
 
 #[test]
@@ -337,7 +351,7 @@ fn own_port_counters() {
     b.feed(b"xx:GR#:Zz#:Mgn99999#");
     assert_eq!(
         b.ask(":~Cp#"),
-        "commands=1 acks=0 garbage_bytes=2 overflows=0 timeouts=0 unknown=1 bad_values=1 replies_cut=0 replies_dropped=0#"
+        "commands=1 acks=0 garbage_bytes=2 overflows=0 timeouts=0 unknown=1 bad_values=1 replies_cut=0 replies_dropped=0 store_timeouts=0#"
     );
 }
 
@@ -502,7 +516,7 @@ fn unknown_commands_are_silent_and_counted() {
 fn size() {
     // The framer's buffer and the session: a port costs this much RAM.
     let size = core::mem::size_of::<Interpreter>();
-    assert!(size <= 176, "{size}");
+    assert!(size <= 192, "{size}");
     // And the reply on the stack while a command is answered.
     let reply = core::mem::size_of::<crate::port::reply::Reply>();
     assert!(reply <= crate::port::reply::REPLY_CAPACITY + 16, "{reply}");

@@ -33,6 +33,8 @@ pub struct DoubleMount {
     pub status: Status,
     pub calls: Vec<Call>,
     pub config: MountConfig,
+    /// Whether saves can be asked (a store).
+    pub store: bool,
 }
 
 pub const STAGES: [Stage; 2] = [
@@ -63,6 +65,7 @@ impl DoubleMount {
             },
             calls: Vec::new(),
             config: MountConfig::default(),
+            store: true,
         }
     }
 }
@@ -146,7 +149,7 @@ impl MountPort for DoubleMount {
     }
     fn save_config(&mut self) -> bool {
         self.calls.push(Call::SaveConfig);
-        true
+        self.store
     }
     fn park(&mut self) {
         self.calls.push(Call::Park);
@@ -158,7 +161,7 @@ impl MountPort for DoubleMount {
     }
     fn save_model(&mut self) -> bool {
         self.calls.push(Call::SaveModel);
-        true
+        self.store
     }
 }
 
@@ -200,5 +203,12 @@ impl Bench {
     /// The reply to `bytes` as text.
     pub fn ask(&mut self, bytes: &str) -> std::string::String {
         std::string::String::from_utf8(self.feed(bytes.as_bytes())).unwrap()
+    }
+
+    /// The store's outcome of the save waiting; the reply it sends.
+    pub fn stored(&mut self, saved: bool) -> std::string::String {
+        let mut replies = Replies::default();
+        self.port.store_done(saved, &mut replies);
+        std::string::String::from_utf8(replies.0.concat()).unwrap()
     }
 }
