@@ -52,6 +52,7 @@ impl Reply {
         REPLY_CAPACITY - self.bytes.len()
     }
 
+    #[inline(never)]
     pub fn text(&mut self, s: &[u8]) -> &mut Self {
         if self.bytes.extend_from_slice(s).is_err() {
             self.overflowed = true;
@@ -67,6 +68,7 @@ impl Reply {
     }
 
     /// `n` in decimal, at least `width` digits (zero-padded).
+    #[inline(never)]
     pub fn padded(&mut self, n: u64, width: usize) -> &mut Self {
         let mut digits = [b'0'; 20];
         let mut len = 0;
@@ -99,6 +101,7 @@ impl Reply {
     /// ` key=value` (no space before the first): one field of a reply of our
     /// own. `false`, and nothing written, if it would leave less than
     /// [`LIST_END_ROOM`] bytes, so a list always has room for its end.
+    #[inline(never)]
     pub fn key_value(&mut self, key: &[u8], value: i64) -> bool {
         let space = usize::from(!self.bytes.is_empty());
         if space + key.len() + 1 + int_len(value) + LIST_END_ROOM > self.room() {
@@ -118,6 +121,7 @@ impl Reply {
 }
 
 /// The number of bytes [`Reply::int`] writes for `n`.
+#[inline(never)]
 pub fn int_len(n: i64) -> usize {
     let mut len = usize::from(n < 0) + 1;
     let mut rest = n.unsigned_abs() / 10;
