@@ -14,9 +14,7 @@ use hal::storage::StorageFlash;
 use mkgp_mount::control_loop::port_mount::{StoreOutcome, StoreRequest};
 use mkgp_mount::model::snapshot::{Phase, SnapshotError};
 use mkgp_mount::mount::config::MountConfig;
-use mkgp_mount::mount::learner::{
-    Learner, MODEL_ONLY_FORMAT, RECORD_FORMAT, RECORD_MAX, SHARE_FORMAT,
-};
+use mkgp_mount::mount::learner::{Learner, RECORD_FORMAT, RECORD_MAX};
 use mkgp_mount::mount::worm_index::WormIndex;
 use mkgp_mount::persist::store::SAVE_ATTEMPTS;
 use mkgp_mount::persist::{Erase, LoadError, Park, SaveError, Store};
@@ -146,11 +144,6 @@ pub async fn boot_park(store: &mut FirmwareStore) -> Option<Park> {
     }
 }
 
-/// The model record's formats the firmware restores: its own, the older
-/// one without the pulse weight (weight 1), and the oldest without the
-/// pulse share (the share then earned again).
-const RECORD_FORMATS: [u16; 3] = [RECORD_FORMAT, SHARE_FORMAT, MODEL_ONLY_FORMAT];
-
 /// Takes the saved model back at start-up, with the phase from a park or
 /// unknown; returns where the model came from.
 pub async fn restore_model(
@@ -169,14 +162,17 @@ pub async fn restore_model(
     } else {
         (Phase::Unknown, ModelOrigin::Relearn)
     };
-    match flash_operation(store.load_model_of(&RECORD_FORMATS)).await {
-        Ok((format, bytes)) => match learner.restore(bytes, format, phase) {
+    match flash_operation(store.load_model(RECORD_FORMAT)).await {
+        Ok(bytes) => match learner.restore(bytes, RECORD_FORMAT, phase) {
             Ok(()) => {
-                defmt::info!("model restored ({} bytes, format {})", bytes.len(), format);
+                defmt::info!("model restored ({} bytes)", bytes.len());
                 origin
             }
-            Err(_) => {
-                defmt::warn!("stored model refused by its checks: learning from the start");
+            Err(e) => {
+                defmt::warn!(
+                    "stored model refused ({}): learning from the start",
+                    e.reason()
+                );
                 ModelOrigin::Cold
             }
         },
@@ -205,16 +201,19 @@ pub async fn restore_at_index(
     let phase = Phase::Worm {
         gear_time_offset_s: index.offset_s(saved_pass, ra_steps),
     };
-    let (format, bytes) = flash_operation(store.load_model_of(&RECORD_FORMATS))
+    let bytes = flash_operation(store.load_model(RECORD_FORMAT))
         .await
         .ok()?;
-    match learner.restore(bytes, format, phase) {
+    match learner.restore(bytes, RECORD_FORMAT, phase) {
         Ok(()) => {
             defmt::info!("model restored at the worm index's first pass");
             Some(ModelOrigin::Index)
         }
-        Err(_) => {
-            defmt::warn!("stored model refused at the worm index's pass");
+        Err(e) => {
+            defmt::warn!(
+                "stored model refused at the worm index's pass ({})",
+                e.reason()
+            );
             None
         }
     }

@@ -18,6 +18,7 @@ use crate::model::gp::grid::{Grid, Push, CELL_S, GRID_CELLS};
 use crate::model::gp::infer::Gp;
 use crate::model::gp::kernel::Kernel;
 use crate::model::in_place::{build, fill, uninit_field};
+use crate::model::numeric::clamp;
 use crate::model::numeric::scalar::Scalar;
 use crate::model::spectral::discovery::Discovery;
 use crate::model::spectral::fft::FFT_LEN;
@@ -92,6 +93,13 @@ pub struct GuiderConfig<S> {
     /// correction of its next frame measures better (INDIGO's traces, the
     /// PHD2 logs; docs/model.md, "Stage discovery", item 6).
     pub prediction_at_gear_time: bool,
+    /// The fastest the gear error can change (px or arcsec per second): a
+    /// prediction is held within this rate over its span, and a restored
+    /// snapshot whose cells change faster is refused. The learner sets the
+    /// mount's guide rate: no feed-forward can follow a gear faster than
+    /// the mount can correct it. Infinite (the default) for a PC guider,
+    /// which keeps the reference's arithmetic.
+    pub max_gear_rate: f64,
 }
 
 /// Stages beyond the worm that can be given a seed period.
@@ -110,6 +118,7 @@ impl<S: Scalar> Default for GuiderConfig<S> {
             max_input: S::from_f64(100.0),
             stage_seeds_s: [None; MAX_SEEDED_STAGES],
             prediction_at_gear_time: false,
+            max_gear_rate: f64::INFINITY,
         }
     }
 }
@@ -525,10 +534,16 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         settling
     }
 
-    /// Whether a measured error is one the guider could mean (finite and
-    /// within `max_input`); if not, it is counted in [`Faults::bad_input`].
+    /// Whether a measured error is one the guider could mean: finite and
+    /// within `max_input`. A frame whose error is not is refused.
+    pub fn accepts_input(&self, error: f64) -> bool {
+        error.abs() <= self.config.max_input.to_f64()
+    }
+
+    /// [`accepts_input`](Self::accepts_input), a refusal counted in
+    /// [`Faults::bad_input`].
     fn is_guide_error(&mut self, error: f64) -> bool {
-        let ok = error.abs() <= self.config.max_input.to_f64();
+        let ok = self.accepts_input(error);
         if !ok {
             self.faults.bad_input = self.faults.bad_input.saturating_add(1);
         }
@@ -680,7 +695,13 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             0.0
         };
         let (from, to) = (x0 - origin + lag, x1 - origin + lag);
-        self.gp.predict_change(&self.grid, &self.kernel, from, to)
+        let change = self.gp.predict_change(&self.grid, &self.kernel, from, to);
+        let bound = self.config.max_gear_rate * (x1 - x0).max(0.0);
+        if bound.is_finite() {
+            S::from_f64(clamp(change.to_f64(), -bound, bound))
+        } else {
+            change
+        }
     }
 
     /// The least settled period among the stages that carry weight.

@@ -102,11 +102,33 @@ pub enum SnapshotError {
     Checksum,
     /// A value out of its range (the checksum matched: a writer's bug).
     Invalid(Field),
+    /// Learned under a configured worm period far from today's (another
+    /// mount or worm; `mount::learner`): refused, the model learns this
+    /// one from its prior.
+    WormPeriod,
     /// Not now: restored data is still waiting for its phase search, so
     /// the grid holds it at no known phase (`Guider::snapshot`). The
     /// previous save stays the one to keep; half a worm period later the
     /// model can be saved again.
     Placing,
+}
+
+impl SnapshotError {
+    /// Why, in a few words, for the log.
+    pub fn reason(&self) -> &'static str {
+        match self {
+            SnapshotError::BufferTooSmall { .. } => "buffer too small",
+            SnapshotError::Length { .. }
+            | SnapshotError::Magic
+            | SnapshotError::Version(_)
+            | SnapshotError::Stages { .. }
+            | SnapshotError::Cells(_) => "another layout",
+            SnapshotError::Checksum => "checksum",
+            SnapshotError::Invalid(_) => "a value no learning gives",
+            SnapshotError::WormPeriod => "learned under another worm period",
+            SnapshotError::Placing => "restored data not placed yet",
+        }
+    }
 }
 
 /// The field [`SnapshotError::Invalid`] names.
@@ -121,6 +143,8 @@ pub enum Field {
     Found,
     CellGear,
     CellVariance,
+    /// The cells' trend: steeper than the gear can change.
+    Trend,
     /// The pulse share the learner saves with the model
     /// (`mount::guiding::damping::SavedShare`).
     PulseShare,

@@ -18,7 +18,7 @@ use crate::model::snapshot::{
 use crate::mount::config::Mount;
 use crate::mount::frame::{FeedForward, Frame, FrameKind};
 use crate::mount::guiding::bump::{self, Bump};
-use crate::mount::guiding::damping::{Damping, SavedShare, SAVED_LEN, SAVED_LEN_BEFORE_WEIGHT};
+use crate::mount::guiding::damping::{Damping, SavedShare, SAVED_LEN};
 use crate::mount::guiding::pulse_weight::PulseWeight;
 use crate::persist::MODEL_RECORD_MAX;
 
@@ -30,22 +30,26 @@ use crate::persist::MODEL_RECORD_MAX;
 pub const FIRMWARE_STAGES: usize = 3;
 
 /// The store's format of the learner's record ([`Learner::snapshot`]): the
-/// pulse share and weight ([`SavedShare`], [`SAVED_LEN`] bytes) and then
-/// the model's snapshot (`model::snapshot`, its format 1).
-pub const RECORD_FORMAT: u16 = 3;
-/// The record before the pulse weight was saved: the share without it
-/// ([`SAVED_LEN_BEFORE_WEIGHT`] bytes), then the model's snapshot. Still
-/// restored, with weight 1.
-pub const SHARE_FORMAT: u16 = 2;
-/// The record before the pulse share was saved: the model's snapshot
-/// alone (format 1, a board's older save). Still restored, the share
-/// earned again.
-pub const MODEL_ONLY_FORMAT: u16 = 1;
-/// Largest record: 8,164 bytes for three stages.
-pub const RECORD_MAX: usize = SAVED_LEN + SNAPSHOT_MAX;
-// The record formats wrap the model's snapshot format 1: a new model
-// layout needs a new record format.
-const _: () = assert!(FORMAT_VERSION == MODEL_ONLY_FORMAT);
+/// configured worm period it was learned under (`f32`, little-endian:
+/// [`WORM_LEN`] bytes), the pulse share and weight ([`SavedShare`],
+/// [`SAVED_LEN`] bytes) and then the model's snapshot (`model::snapshot`,
+/// its format 1). Records of earlier layouts were never written by a
+/// board that ran: refused by their format.
+pub const RECORD_FORMAT: u16 = 4;
+/// Bytes of the configured worm period at the record's head.
+pub const WORM_LEN: usize = 4;
+/// Largest record: 8,168 bytes for three stages.
+pub const RECORD_MAX: usize = WORM_LEN + SAVED_LEN + SNAPSHOT_MAX;
+// The record wraps the model's snapshot format 1: a new model layout needs
+// a new record format.
+const _: () = assert!(FORMAT_VERSION == 1);
+/// How far the configured worm period may have moved since the model was
+/// saved, as a fraction of it. The model's own periods are learned, the
+/// configured one only seeds them, so a correction within this (a measured
+/// period replacing the datasheet's) keeps the model; beyond it the
+/// configuration describes another worm, and the model learns that one
+/// from its prior.
+pub const WORM_PERIOD_CHANGE: f32 = 0.01;
 // The firmware's snapshot fits the buffers sized for it and the store's record.
 const _: () = assert!(FIRMWARE_STAGES <= SNAPSHOT_MAX_STAGES && RECORD_MAX <= MODEL_RECORD_MAX);
 
@@ -78,6 +82,8 @@ pub struct Learner<const N: usize> {
     /// the model's default 10): sets the measurement variance.
     pub snr: f32,
     cadence_s: f32,
+    /// The configured worm period, saved with the model.
+    worm_period_s: f32,
     last_gear_s: Option<f64>,
     settling: u8,
     damping: Damping,
@@ -115,13 +121,14 @@ impl<const N: usize> Learner<N> {
         Guider::init(uninit_field!(slot, guider), config);
         uninit_field!(slot, snr).write(0.0);
         uninit_field!(slot, cadence_s).write(mount.config().guide_cadence_s);
+        uninit_field!(slot, worm_period_s).write(mount.config().worm_period_s);
         uninit_field!(slot, last_gear_s).write(None);
         uninit_field!(slot, settling).write(0);
         uninit_field!(slot, damping).write(Damping::new(mount.config().least_pulse_share));
         uninit_field!(slot, pulse_weight).write(PulseWeight::FULL);
         uninit_field!(slot, bump).write(Bump::NONE);
         uninit_field!(slot, counters).write(LearnerCounters::default());
-        // SAFETY: all 9 fields are written.
+        // SAFETY: all 10 fields are written.
         unsafe { slot.assume_init_mut() }
     }
 
@@ -132,6 +139,7 @@ impl<const N: usize> Learner<N> {
             control_gain: c.guider_aggressiveness,
             // The feed-forward is a rate over the coming interval.
             prediction_at_gear_time: true,
+            max_gear_rate: mount.guide_rate_arcsec_per_s() as f64,
             ..GuiderConfig::default()
         }
     }
@@ -173,25 +181,28 @@ impl<const N: usize> Learner<N> {
     /// tenth or until the new data picks each stage's phase (a quarter
     /// where no stage can be taken apart). Keep the previous save then.
     pub fn snapshot(&self, out: &mut [u8]) -> Result<usize, SnapshotError> {
-        let Some((share, model)) = out.split_at_mut_checked(SAVED_LEN) else {
+        let Some((head, model)) = out.split_at_mut_checked(WORM_LEN + SAVED_LEN) else {
             return Err(SnapshotError::BufferTooSmall { needed: RECORD_MAX });
         };
         let n = self.guider.snapshot(model).map_err(|e| match e {
             SnapshotError::BufferTooSmall { needed } => SnapshotError::BufferTooSmall {
-                needed: needed + SAVED_LEN,
+                needed: needed + WORM_LEN + SAVED_LEN,
             },
             e => e,
         })?;
+        let (worm, share) = head.split_at_mut(WORM_LEN);
+        worm.copy_from_slice(&self.worm_period_s.to_le_bytes());
         let saved = self.damping.saved().with_weight(self.pulse_weight.weight());
         share.copy_from_slice(&saved.to_bytes());
-        Ok(SAVED_LEN + n)
+        Ok(WORM_LEN + SAVED_LEN + n)
     }
 
     /// After a power cycle: take the model back from a record's bytes
-    /// stored as `format` ([`RECORD_FORMAT`]; [`SHARE_FORMAT`] with the
-    /// pulse weight 1; [`MODEL_ONLY_FORMAT`] with the share earned again),
-    /// checked first (an error leaves the learner as it was: a cut or
-    /// garbled record, or another format).
+    /// stored as `format` ([`RECORD_FORMAT`]), checked first: an error
+    /// leaves the learner as it was (another format, a cut or garbled
+    /// record, values no learning gives, or a record learned under a
+    /// configured worm period more than [`WORM_PERIOD_CHANGE`] from this
+    /// one: [`SnapshotError::WormPeriod`]).
     /// `phase`: whether the gear's phase carried over (index or park) and
     /// by how much; see [`Phase`]. The saved share is taken up once the
     /// restored model is trusted. Gear time starts again with the next
@@ -202,28 +213,26 @@ impl<const N: usize> Learner<N> {
         format: u16,
         phase: Phase,
     ) -> Result<(), SnapshotError> {
-        let share_len = match format {
-            RECORD_FORMAT => SAVED_LEN,
-            SHARE_FORMAT => SAVED_LEN_BEFORE_WEIGHT,
-            MODEL_ONLY_FORMAT => 0,
-            other => return Err(SnapshotError::Version(other)),
+        if format != RECORD_FORMAT {
+            return Err(SnapshotError::Version(format));
+        }
+        let too_short = SnapshotError::Length {
+            expected: RECORD_MAX,
+            found: bytes.len(),
         };
-        let (share, model) = bytes
-            .split_at_checked(share_len)
-            .ok_or(SnapshotError::Length {
-                expected: RECORD_MAX,
-                found: bytes.len(),
-            })?;
-        let share = match share_len {
-            0 => None,
-            _ => Some(SavedShare::parse(share)?),
-        };
+        let (worm, rest) = bytes.split_first_chunk::<WORM_LEN>().ok_or(too_short)?;
+        let (share, model) = rest.split_at_checked(SAVED_LEN).ok_or(too_short)?;
+        let saved_worm = f32::from_le_bytes(*worm);
+        if !((saved_worm - self.worm_period_s).abs() <= WORM_PERIOD_CHANGE * self.worm_period_s) {
+            return Err(SnapshotError::WormPeriod);
+        }
+        let share = SavedShare::parse(share)?;
         let snapshot = Snapshot::parse(model, N)?;
         self.guider.restore(&snapshot, phase)?;
         self.last_gear_s = None;
         self.settling = 0;
         self.damping.restore(share);
-        self.pulse_weight = PulseWeight::restored(share.map_or(1.0, |s| s.weight()));
+        self.pulse_weight = PulseWeight::restored(share.weight());
         Ok(())
     }
 
@@ -275,10 +284,22 @@ impl<const N: usize> Learner<N> {
         } else {
             cadence
         };
+        let observed = match frame.kind {
+            FrameKind::Measured => Some(
+                self.pulse_weight
+                    .observation(frame.applied_arcsec as f64, frame.gear_error_arcsec as f64),
+            ),
+            _ => None,
+        };
+        // An observation the model refuses (its measured part not finite or
+        // beyond `max_input`) is no guide error for the bump, the damping
+        // or the pulse weight either: a step measured from it would lower
+        // every later observation by as much.
+        let sane = observed.filter(|o| self.guider.accepts_input(o - frame.applied_arcsec as f64));
         // A pulse far beyond the recent ones: the star stepped. Settle as
         // after a dither and measure the step, trusted model or not (a step
         // learned before the model is trusted stays in its data).
-        let stepped = frame.kind == FrameKind::Measured
+        let stepped = sane.is_some()
             && self.settling == 0
             && self
                 .damping
@@ -299,14 +320,7 @@ impl<const N: usize> Learner<N> {
         if settling {
             self.settling -= 1;
         }
-        let observed = match frame.kind {
-            FrameKind::Measured => Some(
-                self.pulse_weight
-                    .observation(frame.applied_arcsec as f64, frame.gear_error_arcsec as f64),
-            ),
-            _ => None,
-        };
-        self.bump.frame(d, observed, !settling);
+        self.bump.frame(d, sane, !settling);
         let level = self.bump.level();
         let observation = observed.filter(|_| !settling).map(|o| o - level);
         let step = next + 0.5 * d;
@@ -324,10 +338,7 @@ impl<const N: usize> Learner<N> {
         self.bump.installed(rate);
         // A guide frame's pulse (0 when the guider sent none); the others
         // (dithers, settling, silence) are carried out in full.
-        let pulse = match frame.kind {
-            FrameKind::Measured if !settling => Some(frame.pulse_arcsec),
-            _ => None,
-        };
+        let pulse = sane.filter(|_| !settling).map(|_| frame.pulse_arcsec);
         let pulse_share = self.damping.frame(pulse, self.trusted());
         if pulse.is_some() {
             self.pulse_weight.frame(self.damping.swing());
@@ -352,8 +363,9 @@ impl<const N: usize> Learner<N> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::snapshot::crc32;
+    use crate::model::snapshot::{crc32, Field};
     use crate::mount::config::MountConfig;
+    use crate::testing::SplitMix64;
 
     /// Measured frame `k` of a 2 s cadence: its observation and its pulse.
     fn measured(k: u32, error: f32, pulse: f32) -> Frame {
@@ -440,9 +452,8 @@ mod tests {
     }
 
     /// A learner restored from another's bytes holds the same model and
-    /// pulse share; bad bytes are refused and change nothing; a board's
-    /// older record (the model alone) is restored with the share earned
-    /// again.
+    /// pulse share; bad bytes, another format and a record learned under
+    /// another configured worm period are refused and change nothing.
     #[test]
     fn restore_takes_the_model_back_and_refuses_bad_bytes() {
         let m = MountConfig::default().validate().unwrap();
@@ -462,14 +473,15 @@ mod tests {
             a.snapshot(&mut [0u8; 8]),
             Err(SnapshotError::BufferTooSmall { needed: RECORD_MAX })
         );
+        const HEAD: usize = WORM_LEN + SAVED_LEN;
         let mut b: std::boxed::Box<Learner<2>> = std::boxed::Box::new(Learner::new(&m));
         let unknown = Phase::Unknown;
-        // Cut anywhere (in the share or the model): refused.
-        for cut in [0, SAVED_LEN - 1, SAVED_LEN, n - 1] {
+        // Cut anywhere (in the worm, the share or the model): refused.
+        for cut in [0, WORM_LEN - 1, HEAD - 1, HEAD, n - 1] {
             assert!(b.restore(&bytes[..cut], RECORD_FORMAT, unknown).is_err());
         }
         // Garbled in the model, then in the share: refused.
-        for at in [100, 3] {
+        for at in [100, WORM_LEN + 3] {
             bytes[at] ^= 0x40;
             assert_eq!(
                 b.restore(&bytes[..n], RECORD_FORMAT, unknown),
@@ -478,13 +490,11 @@ mod tests {
             bytes[at] ^= 0x40;
         }
         assert_eq!(
-            b.restore(&bytes[..n], 4, unknown),
-            Err(SnapshotError::Version(4))
+            b.restore(&bytes[..n], 3, unknown),
+            Err(SnapshotError::Version(3))
         );
-        // The model's snapshot alone read as the current record: refused.
-        assert!(b
-            .restore(&bytes[SAVED_LEN..n], RECORD_FORMAT, unknown)
-            .is_err());
+        // The model's snapshot alone read as the record: refused.
+        assert!(b.restore(&bytes[HEAD..n], RECORD_FORMAT, unknown).is_err());
         assert_eq!(b.guider().period_s(0), m.config().worm_period_s as f64);
         assert_eq!(b.pulse_share(), 1.0);
         let known = Phase::Known {
@@ -496,29 +506,192 @@ mod tests {
         let mut again = [0u8; RECORD_MAX];
         let n2 = b.snapshot(&mut again).unwrap();
         let (sa, sb) = (
-            Snapshot::parse(&bytes[SAVED_LEN..n], 2).unwrap(),
-            Snapshot::parse(&again[SAVED_LEN..n2], 2).unwrap(),
+            Snapshot::parse(&bytes[HEAD..n], 2).unwrap(),
+            Snapshot::parse(&again[HEAD..n2], 2).unwrap(),
         );
         assert!(sa.cells().eq(sb.cells()));
         assert_eq!((sa.stage(0), sa.stage(1)), (sb.stage(0), sb.stage(1)));
-        assert_eq!(bytes[..SAVED_LEN], again[..SAVED_LEN]);
-        // An older board's record: the model alone, the share unknown.
-        let mut c: std::boxed::Box<Learner<2>> = std::boxed::Box::new(Learner::new(&m));
-        assert_eq!(
-            c.restore(&bytes[SAVED_LEN..n], MODEL_ONLY_FORMAT, known),
-            Ok(())
+        assert_eq!(bytes[..HEAD], again[..HEAD]);
+        // Under a configured worm period 0.5 % off (a corrected figure):
+        // restored; 2 % off (another worm): refused, nothing changed.
+        let worm = m.config().worm_period_s;
+        for (factor, restored) in [(1.005, true), (1.02, false), (0.98, false)] {
+            let other = MountConfig {
+                worm_period_s: worm * factor,
+                ..*m.config()
+            };
+            let other = other.validate().unwrap();
+            let mut c: std::boxed::Box<Learner<2>> = std::boxed::Box::new(Learner::new(&other));
+            let r = c.restore(&bytes[..n], RECORD_FORMAT, known);
+            if restored {
+                assert_eq!(r, Ok(()), "{factor}");
+            } else {
+                assert_eq!(r, Err(SnapshotError::WormPeriod), "{factor}");
+                assert_eq!(c.guider().period_s(0), (worm * factor) as f64);
+                assert_eq!(c.pulse_share(), 1.0);
+            }
+        }
+    }
+
+    /// A learner that has learned a worm for an hour, and its record.
+    fn learned_record() -> (Mount, std::vec::Vec<u8>) {
+        let m = MountConfig::default().validate().unwrap();
+        let worm = m.config().worm_period_s as f64;
+        let mut a: std::boxed::Box<Learner<2>> = std::boxed::Box::new(Learner::new(&m));
+        for k in 0..1800 {
+            let t = 2.0 * k as f64;
+            let error = 5.0 * (t * core::f64::consts::TAU / worm).sin() + 0.001 * t;
+            a.learn(measured(k, error as f32, 0.0));
+        }
+        let mut bytes = std::vec![0u8; RECORD_MAX];
+        let n = a.snapshot(&mut bytes).unwrap();
+        bytes.truncate(n);
+        (m, bytes)
+    }
+
+    /// `record` with its model's cells rewritten by `cell` (index, gear
+    /// error) or a stage's period set, and the model's checksum made
+    /// right again: only the bounds can refuse it.
+    fn rewritten(
+        record: &[u8],
+        cell: impl Fn(usize, f32) -> f32,
+        period: Option<(usize, f64)>,
+    ) -> std::vec::Vec<u8> {
+        const HEAD: usize = WORM_LEN + SAVED_LEN;
+        let mut r = record.to_vec();
+        let stages = usize::from(u16::from_le_bytes([r[HEAD + 6], r[HEAD + 7]]));
+        let first = HEAD + 20 + 40 * stages;
+        let cells = (r.len() - 4 - first) / 8;
+        for i in 0..cells {
+            let at = first + 8 * i;
+            let g = f32::from_le_bytes(r[at..at + 4].try_into().unwrap());
+            r[at..at + 4].copy_from_slice(&cell(i, g).to_le_bytes());
+        }
+        if let Some((s, p)) = period {
+            let at = HEAD + 20 + 40 * s;
+            r[at..at + 8].copy_from_slice(&p.to_le_bytes());
+        }
+        let end = r.len() - 4;
+        let crc = crc32(&r[HEAD..end]);
+        r[end..].copy_from_slice(&crc.to_le_bytes());
+        r
+    }
+
+    /// A record whose checksums are right but whose values no learning
+    /// gives is refused whole: twenty cells at 1e6 arcsec, a period
+    /// outside the spectrum's range, cells climbing faster than the mount
+    /// can correct. The record as saved is taken.
+    #[test]
+    fn a_record_with_values_no_learning_gives_is_refused() {
+        let (m, record) = learned_record();
+        let known = Phase::Known {
+            gear_time_offset_s: 0.0,
+        };
+        let restore = |bytes: &[u8]| {
+            let mut l: std::boxed::Box<Learner<2>> = std::boxed::Box::new(Learner::new(&m));
+            l.restore(bytes, RECORD_FORMAT, known)
+        };
+        assert_eq!(restore(&record), Ok(()));
+        let spikes = rewritten(
+            &record,
+            |i, g| if (300..320).contains(&i) { 1e6 } else { g },
+            None,
         );
-        assert_eq!((c.pulse_share(), c.pulse_weight()), (1.0, 1.0));
-        let n3 = c.snapshot(&mut again).unwrap();
-        let sc = Snapshot::parse(&again[SAVED_LEN..n3], 2).unwrap();
-        assert!(sa.cells().eq(sc.cells()));
-        // A record of format 2: the share without the weight.
-        let mut old = std::vec::Vec::from(&bytes[..12]);
-        old.extend_from_slice(&crc32(&bytes[..12]).to_le_bytes());
-        old.extend_from_slice(&bytes[SAVED_LEN..n]);
-        let mut d: std::boxed::Box<Learner<2>> = std::boxed::Box::new(Learner::new(&m));
-        assert_eq!(d.restore(&old, SHARE_FORMAT, known), Ok(()));
-        assert_eq!((d.pulse_share(), d.pulse_weight()), (share, 1.0));
+        assert_eq!(
+            restore(&spikes),
+            Err(SnapshotError::Invalid(Field::CellGear))
+        );
+        for period in [5.0, 1e5] {
+            let r = rewritten(&record, |_, g| g, Some((1, period)));
+            assert_eq!(
+                restore(&r),
+                Err(SnapshotError::Invalid(Field::Period)),
+                "{period}"
+            );
+        }
+        // 40 arcsec a cell: each step within two observations' reach, the
+        // whole a climb of 8 arcsec/s, beyond the guide rate (7.5).
+        let climb = rewritten(&record, |i, g| g + 40.0 * i as f32, None);
+        assert_eq!(restore(&climb), Err(SnapshotError::Invalid(Field::Trend)));
+        let slower = rewritten(&record, |i, g| g + 30.0 * i as f32, None);
+        assert_eq!(restore(&slower), Ok(()));
+    }
+
+    /// Observations the model refuses (plus or minus 1e5 arcsec) mixed
+    /// with guiding sections at cadences from 0.2 to 60 s, with dithers:
+    /// the prediction never beyond what the mount can correct over its
+    /// span (the guide rate), and the feed-forward back to the gear's after
+    /// a clean section. The refused frames once set the bump's level and
+    /// drove the prediction to 24,551 arcsec (seed 11).
+    #[test]
+    fn refused_observations_at_random_cadences_keep_the_prediction_physical() {
+        let m = MountConfig::default().validate().unwrap();
+        let guide_rate = m.guide_rate_arcsec_per_s();
+        let worm = m.config().worm_period_s as f64;
+        let drift = 0.002;
+        let mut worst = 0.0f32;
+        for seed in 0..16 {
+            let mut rng = SplitMix64::new(7 * seed + 1);
+            let mut l: std::boxed::Box<Learner<3>> = std::boxed::Box::new(Learner::new(&m));
+            let (mut t, mut applied, mut cadence, mut outliers) = (0.0f64, 0.0f64, 2.0, 0);
+            let mut ff = FeedForward::NONE;
+            for k in 0..5000u32 {
+                // A new section every 150 frames or so; the last 500
+                // frames a clean one at 2 s.
+                let clean = k >= 4500;
+                if rng.below(150) == 0 {
+                    cadence = rng.f64_in(0.2, 60.0);
+                }
+                if clean {
+                    cadence = 2.0;
+                }
+                let previous = t;
+                t += cadence;
+                let gear = 5.0 * (t * core::f64::consts::TAU / worm).sin() + drift * t;
+                applied = 0.8 * applied + 0.2 * gear;
+                if !clean && outliers == 0 && rng.below(20) == 0 {
+                    outliers = 1 + rng.below(30);
+                }
+                let kind = if rng.below(200) == 0 {
+                    FrameKind::Dither { amount_arcsec: 3.0 }
+                } else {
+                    FrameKind::Measured
+                };
+                let (error, pulse) = if outliers > 0 {
+                    outliers -= 1;
+                    let e = if rng.below(2) == 0 { 1e5 } else { -1e5 };
+                    (e, 0.7 * e)
+                } else {
+                    (gear, 0.7 * (gear - applied))
+                };
+                ff = l.learn(Frame {
+                    gear_time_s: t,
+                    interval_s: cadence as f32,
+                    kind,
+                    gear_error_arcsec: error as f32,
+                    applied_arcsec: applied as f32,
+                    pulse_arcsec: pulse as f32,
+                    filled: false,
+                });
+                // The prediction spans from the previous one's end (at
+                // most half this interval back) to the next frame (at most
+                // the longest step ahead).
+                let span = 0.5 * (t - previous) + MAX_TIME_STEP_S;
+                let p = l.guider().prediction();
+                assert!(
+                    p.abs() <= guide_rate * span as f32,
+                    "seed {seed}, frame {k}: {p}"
+                );
+                assert!(ff.rate_arcsec_per_s.is_finite());
+                worst = worst.max(p.abs());
+            }
+            let gear_rate = 5.0 * core::f64::consts::TAU / worm + drift;
+            assert!(
+                (ff.rate_arcsec_per_s as f64).abs() < 2.0 * gear_rate,
+                "seed {seed}: {ff:?}"
+            );
+        }
+        std::println!("largest prediction {worst} arcsec");
     }
 
     /// F5 through the learner: an observation the model refuses (beyond

@@ -165,7 +165,7 @@ impl<F: NorFlash> Store<F> {
 
     /// The stored configuration, validated.
     pub async fn load_config(&mut self) -> Result<Mount, LoadError<F::Error>> {
-        let (_, body) = self.load(Slot::Config, &[CONFIG_FORMAT]).await?;
+        let body = self.load(Slot::Config, CONFIG_FORMAT).await?;
         let config = config_record::decode(body).ok_or(LoadError::Malformed)?;
         config.validate().map_err(LoadError::Invalid)
     }
@@ -183,18 +183,7 @@ impl<F: NorFlash> Store<F> {
     /// The stored model snapshot, if it was written in `format` (the
     /// snapshot code's own layout version).
     pub async fn load_model(&mut self, format: u16) -> Result<&[u8], LoadError<F::Error>> {
-        self.load(Slot::Model, &[format])
-            .await
-            .map(|(_, body)| body)
-    }
-
-    /// The stored model snapshot if it was written in one of `formats`
-    /// (newest first: a `Format` error names the first), with its format.
-    pub async fn load_model_of(
-        &mut self,
-        formats: &[u16],
-    ) -> Result<(u16, &[u8]), LoadError<F::Error>> {
-        self.load(Slot::Model, formats).await
+        self.load(Slot::Model, format).await
     }
 
     /// Saves a model snapshot of at most [`MODEL_RECORD_MAX`] bytes in
@@ -211,7 +200,7 @@ impl<F: NorFlash> Store<F> {
     /// The step counts saved at the last park; `NothingStored` if the
     /// mount was unparked since ([`Store::clear_park`]).
     pub async fn load_park(&mut self) -> Result<Park, LoadError<F::Error>> {
-        match self.load(Slot::Park, &[PARK_FORMAT]).await?.1 {
+        match self.load(Slot::Park, PARK_FORMAT).await? {
             [] => Err(LoadError::NothingStored),
             body => Park::decode(body).ok_or(LoadError::Malformed),
         }
@@ -232,7 +221,7 @@ impl<F: NorFlash> Store<F> {
 
     /// The RA step count of the worm index's pass saved with the model.
     pub async fn load_index(&mut self) -> Result<i64, LoadError<F::Error>> {
-        let (_, body) = self.load(Slot::Index, &[INDEX_FORMAT]).await?;
+        let body = self.load(Slot::Index, INDEX_FORMAT).await?;
         let bytes: [u8; 8] = body.try_into().map_err(|_| LoadError::Malformed)?;
         Ok(i64::from_le_bytes(bytes))
     }
@@ -250,12 +239,7 @@ impl<F: NorFlash> Store<F> {
 
     /// The body of the newest complete record in `slot`, if its format is
     /// `format`.
-    /// The newest record of `slot` and its format, one of `formats`.
-    async fn load(
-        &mut self,
-        slot: Slot,
-        formats: &[u16],
-    ) -> Result<(u16, &[u8]), LoadError<F::Error>> {
+    async fn load(&mut self, slot: Slot, format: u16) -> Result<&[u8], LoadError<F::Error>> {
         let config = MapConfig::try_new(self.range.clone()).map_err(LoadError::Geometry)?;
         recover(&mut self.flash, self.range.clone(), &mut self.buffer.0)
             .await
@@ -266,10 +250,10 @@ impl<F: NorFlash> Store<F> {
             .fetch_item::<Envelope>(&mut self.buffer.0, &(slot as u8))
             .await;
         match found {
-            Ok(Some(e)) if formats.contains(&e.format) => Ok((e.format, e.body)),
+            Ok(Some(e)) if e.format == format => Ok(e.body),
             Ok(Some(e)) => Err(LoadError::Format {
                 found: e.format,
-                expected: formats.first().copied().unwrap_or(0),
+                expected: format,
             }),
             Ok(None) => Err(LoadError::NothingStored),
             // Too short for an envelope: no firmware of ours wrote it.
@@ -392,15 +376,6 @@ mod tests {
                 Err(LoadError::Format {
                     found: 4,
                     expected: 5
-                })
-            ));
-            // Either of two formats: the stored one, with its format.
-            assert_eq!(s.load_model_of(&[5, 4]).await.unwrap(), (4, &[1, 2, 3][..]));
-            assert!(matches!(
-                s.load_model_of(&[6, 5]).await,
-                Err(LoadError::Format {
-                    found: 4,
-                    expected: 6
                 })
             ));
         });

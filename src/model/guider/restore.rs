@@ -25,6 +25,7 @@ use crate::model::snapshot::{encode, Phase, SavedStage, Snapshot, SnapshotError,
 use crate::model::spectral::discovery::beats;
 use crate::model::spectral::period::PeriodTracker;
 
+mod bounds;
 mod harmonics;
 
 use harmonics::{Harmonics, StagePhase};
@@ -163,8 +164,9 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     /// placed at the first frame as `phase` allows and, unless every
     /// stage's phase is known, again by the phase search a little later
     /// (half a worm period; with the worm's phase known, a tenth). The
-    /// fault counters stay. A snapshot of another stage count is refused
-    /// and nothing changes.
+    /// fault counters stay. A snapshot of another stage count, or one
+    /// outside the bounds this configuration learns within (`bounds`), is
+    /// refused and nothing changes.
     pub fn restore(&mut self, snapshot: &Snapshot<'_>, phase: Phase) -> Result<(), SnapshotError> {
         if snapshot.stages() != N {
             return Err(SnapshotError::Stages {
@@ -172,6 +174,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
                 model: u16::try_from(N).unwrap_or(u16::MAX),
             });
         }
+        bounds::check(&self.config, snapshot)?;
         self.reset();
         self.held_time = None;
         for (s, ((tracker, gate), saved)) in self

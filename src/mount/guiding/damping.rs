@@ -86,9 +86,8 @@ pub struct Damping {
 /// bytes, little-endian: the share, the mean square of the pulses, the
 /// mean product of neighbouring ones and the pulse weight
 /// (`super::pulse_weight`; `f32` each), and the CRC-32 of those 16 bytes.
-/// Record format 2 saved the first three alone ([`SAVED_LEN_BEFORE_WEIGHT`]
-/// bytes, the CRC-32 of 12): read with weight 1. A damping that has
-/// measured nothing yet saves share 1 and zeros: nothing to restore.
+/// A damping that has measured nothing yet saves share 1 and zeros:
+/// nothing to restore.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SavedShare {
     fraction: f32,
@@ -99,39 +98,27 @@ pub struct SavedShare {
 
 /// Bytes of a [`SavedShare`].
 pub const SAVED_LEN: usize = 20;
-/// Bytes of a [`SavedShare`] saved before the pulse weight (record format 2).
-pub const SAVED_LEN_BEFORE_WEIGHT: usize = 16;
 
 impl SavedShare {
     /// Checks everything before anything is used: length, checksum, and
     /// each value finite and in range (a share in (0, 1], a mean square
     /// >= 0, a weight in [`LEAST`]..=1).
     pub fn parse(bytes: &[u8]) -> Result<Self, SnapshotError> {
-        let words = match bytes.len() {
-            SAVED_LEN => 4,
-            SAVED_LEN_BEFORE_WEIGHT => 3,
-            found => {
-                return Err(SnapshotError::Length {
-                    expected: SAVED_LEN,
-                    found,
-                })
-            }
-        };
+        if bytes.len() != SAVED_LEN {
+            return Err(SnapshotError::Length {
+                expected: SAVED_LEN,
+                found: bytes.len(),
+            });
+        }
         let word = |k: usize| {
             let mut w = [0u8; 4];
             w.copy_from_slice(bytes.get(4 * k..4 * k + 4).unwrap_or(&[0; 4]));
             w
         };
-        if crc32(bytes.get(..4 * words).unwrap_or(&[])) != u32::from_le_bytes(word(words)) {
+        if crc32(bytes.get(..16).unwrap_or(&[])) != u32::from_le_bytes(word(4)) {
             return Err(SnapshotError::Checksum);
         }
-        let [fraction, square, lagged, weight] = [0, 1, 2, 3].map(|k| {
-            if k < words {
-                f32::from_le_bytes(word(k))
-            } else {
-                1.0
-            }
-        });
+        let [fraction, square, lagged, weight] = [0, 1, 2, 3].map(|k| f32::from_le_bytes(word(k)));
         let ok = fraction > 0.0
             && fraction <= 1.0
             && (0.0..=MAX_SAVED_SQUARE).contains(&square)
@@ -216,11 +203,11 @@ impl Damping {
     /// pulses before); after a rise (an untrusted frame, correlated
     /// pulses) the share returns to it within a
     /// minute once the pulses are anti-correlated again.
-    pub fn restore(&mut self, saved: Option<SavedShare>) {
+    pub fn restore(&mut self, s: SavedShare) {
         self.reset();
-        let Some(s) = saved.filter(|s| s.square > 0.0) else {
+        if !(s.square > 0.0) {
             return;
-        };
+        }
         self.square = s.square;
         self.lagged = s.lagged;
         self.scored = WINDOW_FRAMES;
@@ -398,7 +385,7 @@ mod tests {
         assert_eq!(back, saved);
         // Not trusted: full pulses, and the share once trusted again.
         let mut r = Damping::new(0.2);
-        r.restore(Some(back));
+        r.restore(back);
         assert_eq!(r.frame(Some(0.1), false), PulseShare::FULL);
         let mut share = 1.0;
         for k in 0..60 {
@@ -408,14 +395,12 @@ mod tests {
         assert!(share < 0.5, "{share}");
         // Trusted from the start: the saved share at once.
         let mut r = Damping::new(0.2);
-        r.restore(Some(back));
+        r.restore(back);
         let share = r.frame(Some(0.1), true).fraction;
         assert!((share - saved.fraction).abs() < 0.05, "{share}");
         // Nothing measured, nothing saved: earned again.
         let fresh = Damping::new(0.2).saved();
-        r.restore(Some(fresh));
-        assert_eq!(r.frame(Some(0.1), true), PulseShare::FULL);
-        r.restore(None);
+        r.restore(fresh);
         assert_eq!(r.frame(Some(0.1), true), PulseShare::FULL);
     }
 
@@ -454,23 +439,6 @@ mod tests {
                 Err(SnapshotError::Invalid(Field::PulseShare))
             );
         }
-    }
-
-    /// Record format 2 saved the share without the weight: the first three
-    /// words and the CRC-32 of those 12 bytes.
-    #[test]
-    fn a_share_saved_before_the_weight_reads_with_weight_one() {
-        let mut d = Damping::new(0.2);
-        earned(&mut d);
-        let saved = d.saved().with_weight(0.5);
-        let bytes = saved.to_bytes();
-        let mut old = [0u8; SAVED_LEN_BEFORE_WEIGHT];
-        old[..12].copy_from_slice(&bytes[..12]);
-        old[12..].copy_from_slice(&crc32(&bytes[..12]).to_le_bytes());
-        assert_eq!(SavedShare::parse(&old), Ok(saved.with_weight(1.0)));
-        assert_eq!(SavedShare::parse(&bytes), Ok(saved));
-        old[3] ^= 1;
-        assert_eq!(SavedShare::parse(&old), Err(SnapshotError::Checksum));
     }
 
     #[test]
