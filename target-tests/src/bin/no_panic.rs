@@ -215,8 +215,11 @@ fn command_port(mount: &Mount, learner: &Learner<FIRMWARE_STAGES>) -> u32 {
             state: &mut state,
             now_us,
             steps,
+            port: black_box(round as usize % 2),
         };
         port.feed(black_box(&chunk), now_us, &mut pm, &mut out);
+        // A save's outcome, for the port that asked.
+        port.store_done(black_box(round % 3 == 0), &mut out);
         let _ = lp.wake(now_us, steps.ra, &mut NoEdges, None);
     }
     let learned = LearnedFrame::of(
