@@ -351,6 +351,32 @@ fn random_record(rng: &mut SplitMix64) -> Record {
     }
 }
 
+/// A quarter of the saves are cut, at any of their operations (counted on
+/// a copy of `mem`).
+fn random_cut(rng: &mut SplitMix64, mem: &[u8], record: &Record, erase: Erase) -> Option<u64> {
+    (rng.below(4) == 0).then(|| {
+        let mut copy = mem.to_vec();
+        let mut flash = Flash::new(&mut copy);
+        let _ = save(&mut flash, record, erase);
+        rng.below(flash.ops().max(1))
+    })
+}
+
+/// The next boot after `record`'s save: every record loads as `committed`
+/// says or, if the save was cut, as after it. What loaded is committed.
+fn boot_after(mem: &mut [u8], committed: Loaded, record: &Record, cut: bool, at: &str) -> Loaded {
+    let loaded = reboot(mem);
+    if cut {
+        assert!(
+            loaded == committed || loaded == committed.with(record),
+            "{at}: loaded {loaded:?}"
+        );
+    } else {
+        assert_eq!(loaded, committed, "{at}");
+    }
+    loaded
+}
+
 #[test]
 fn random_saves_with_random_cuts_load_the_last_complete_save() {
     let mut rng = SplitMix64::new(9);
@@ -366,16 +392,7 @@ fn random_saves_with_random_cuts_load_the_last_complete_save() {
             } else {
                 Erase::Allow
             };
-            // A quarter of the saves are cut, at any of their operations
-            // (counted on a copy).
-            let cut_at = if rng.below(4) == 0 {
-                let mut copy = mem.clone();
-                let mut flash = Flash::new(&mut copy);
-                let _ = save(&mut flash, &record, erase);
-                Some(rng.below(flash.ops().max(1)))
-            } else {
-                None
-            };
+            let cut_at = random_cut(&mut rng, &mem, &record, erase);
             let erase_cut = if rng.below(2) == 0 {
                 EraseCut::InOrder
             } else {
@@ -414,17 +431,8 @@ fn random_saves_with_random_cuts_load_the_last_complete_save() {
                 assert!(flash.is_cut());
                 boot_cuts += 1;
             }
-            let loaded = reboot(&mut mem);
-            if cut {
-                cuts += 1;
-                assert!(
-                    loaded == committed || loaded == committed.with(&record),
-                    "{at}"
-                );
-                committed = loaded;
-            } else {
-                assert_eq!(loaded, committed, "{at}");
-            }
+            cuts += usize::from(cut);
+            committed = boot_after(&mut mem, committed, &record, cut, &at);
         }
     }
     // The sequences exercised cuts, deferred saves, page changes and cut
@@ -487,12 +495,7 @@ fn random_saves_over_dirty_free_space_keep_every_save_reported_done() {
                     }
                 }
             }
-            let cut_at = (rng.below(4) == 0).then(|| {
-                let mut copy = mem.clone();
-                let mut flash = Flash::new(&mut copy);
-                let _ = save(&mut flash, &record, erase);
-                rng.below(flash.ops().max(1))
-            });
+            let cut_at = random_cut(&mut rng, &mem, &record, erase);
             let mut flash = Flash::new(&mut mem);
             if let Some(n) = cut_at {
                 flash.cut_after(n, rng.next_u64());
@@ -507,17 +510,8 @@ fn random_saves_over_dirty_free_space_keep_every_save_reported_done() {
                 Err(SaveError::Flash(_)) => assert!(cut, "{at}"),
                 Err(e) => panic!("{at}: {e:?}"),
             }
-            let loaded = reboot(&mut mem);
-            if cut {
-                cuts += 1;
-                assert!(
-                    loaded == committed || loaded == committed.with(&record),
-                    "{at}: loaded {loaded:?}"
-                );
-                committed = loaded;
-            } else {
-                assert_eq!(loaded, committed, "{at}");
-            }
+            cuts += usize::from(cut);
+            committed = boot_after(&mut mem, committed, &record, cut, &at);
         }
     }
     std::println!("{dirtied} bytes dirtied, {unverified} saves unverified, {cuts} cuts");
