@@ -27,6 +27,7 @@ use mkgp_mount::control_loop::{ControlLoop, FrameRecord};
 use mkgp_mount::mount::config::Mount;
 use mkgp_mount::mount::guiding::FRAME_QUEUE;
 use mkgp_mount::mount::st4::{Line, St4Counters};
+use mkgp_mount::persist::StoreCounters;
 use mkgp_mount::port::mount_port::{Identity, ModelOrigin, StepCounts};
 use mkgp_mount::port::Interpreter;
 use mkgp_mount::safety::fault_record::FaultRecord;
@@ -69,9 +70,54 @@ pub static RESET_MODEL: Signal<CriticalSectionRawMutex, ()> = Signal::new();
 /// it).
 pub static STORE_REQUESTS: Channel<CriticalSectionRawMutex, StoreRequest, 4> = Channel::new();
 
-/// What became of the store's saves, from the learning task: the reply of
-/// the port that asked, the store's counters.
-pub static STORE_OUTCOMES: Channel<CriticalSectionRawMutex, StoreOutcome, 8> = Channel::new();
+/// What became of the store's saves, from the learning task: each port's
+/// outcome waiting for its reply, and the store's newest counters. A cell,
+/// not a queue: a port has one save at a time, and only the newest
+/// counters matter (a `Cell` of `Copy` values also brings no panic path).
+pub static STORE_DONE: Mutex<CriticalSectionRawMutex, Cell<StoreDone>> =
+    Mutex::new(Cell::new(StoreDone {
+        replies: [None; PORTS],
+        counters: StoreCounters {
+            rewrites: 0,
+            unverified: 0,
+        },
+    }));
+
+/// See [`STORE_DONE`].
+#[derive(Clone, Copy)]
+pub struct StoreDone {
+    /// Per port: saved (`true`) or not, waiting for its reply.
+    pub replies: [Option<bool>; PORTS],
+    pub counters: StoreCounters,
+}
+
+impl StoreDone {
+    /// The learning task's side: `outcome` for the port that asked, and
+    /// the counters.
+    pub fn report(outcome: StoreOutcome) {
+        STORE_DONE.lock(|cell| {
+            let mut done = cell.get();
+            if let Some(reply) = outcome.reply_to.and_then(|p| done.replies.get_mut(p)) {
+                *reply = Some(outcome.saved);
+            }
+            done.counters = outcome.counters;
+            cell.set(done);
+        });
+    }
+
+    /// The guiding task's side: the outcomes waiting (taken) and the
+    /// counters.
+    fn take() -> StoreDone {
+        STORE_DONE.lock(|cell| {
+            let done = cell.get();
+            cell.set(StoreDone {
+                replies: [None; PORTS],
+                ..done
+            });
+            done
+        })
+    }
+}
 
 /// Where the model came from, set by the learning task when it restores
 /// it (at start-up, or at the worm index's first pass).
@@ -191,13 +237,11 @@ impl Ports {
     /// bytes), or lets a stale half command time out.
     fn serve(&mut self, lp: &mut ControlLoop, now_us: u64) {
         let (ra, dec) = step_counts();
-        while let Ok(outcome) = STORE_OUTCOMES.try_receive() {
-            self.state.store_counters = outcome.counters;
-            let asked = outcome
-                .reply_to
-                .and_then(|p| self.interpreters.get_mut(p).zip(LINKS.get(p)));
-            if let Some((port, link)) = asked {
-                port.store_done(outcome.saved, &mut LinkSink(link));
+        let done = StoreDone::take();
+        self.state.store_counters = done.counters;
+        for ((port, link), saved) in self.interpreters.iter_mut().zip(&LINKS).zip(done.replies) {
+            if let Some(saved) = saved {
+                port.store_done(saved, &mut LinkSink(link));
             }
         }
         let mut mount = PortMount {

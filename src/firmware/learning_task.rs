@@ -16,7 +16,7 @@ use embassy_time::{Duration, Instant};
 use mkgp_mount::persist::{Erase, StoreCounters};
 
 use crate::firmware::guiding_task::{
-    FRAMES, INDEX_EDGE, LEARNED, MODEL_ORIGIN, RESET_MODEL, STORE_OUTCOMES, STORE_REQUESTS,
+    StoreDone, FRAMES, INDEX_EDGE, LEARNED, MODEL_ORIGIN, RESET_MODEL, STORE_REQUESTS,
 };
 use crate::firmware::log;
 use crate::firmware::port_io::RECEIVED;
@@ -107,10 +107,7 @@ pub async fn learning_task(learner: &'static mut Learner<STAGES>, mut storage: O
                         counters: StoreCounters::default(),
                     },
                 };
-                // Lost only if the guiding task has not drained the queue
-                // since eight outcomes: the port then answers `0` at its
-                // timeout.
-                let _ = STORE_OUTCOMES.try_send(outcome);
+                StoreDone::report(outcome);
                 RECEIVED.signal(());
                 continue;
             }
@@ -140,9 +137,8 @@ pub async fn learning_task(learner: &'static mut Learner<STAGES>, mut storage: O
                 last_save = Instant::now();
                 let pass = s.index.last_pass();
                 let saved = storage::save_model(s.store, learner, s.buf, Erase::Defer, pass).await;
-                // For the store's counters on the ports; a full queue
-                // keeps the older ones until the next save.
-                let _ = STORE_OUTCOMES.try_send(StoreOutcome {
+                // For the store's counters on the ports.
+                StoreDone::report(StoreOutcome {
                     reply_to: None,
                     saved,
                     counters: s.store.counters(),
