@@ -1007,7 +1007,7 @@ fn print_night_goals(nights: &[night::Night]) {
     for (name, (ok, of)) in names.iter().zip(met) {
         if of > 0 {
             let verdict = if ok == of { "met" } else { "NOT met" };
-            println!("goal, {name}: {verdict}, on {ok} of {of} nights");
+            println!("goal, {name}: {verdict} (holds on {ok} of {of} nights)");
         }
     }
 }
