@@ -29,7 +29,11 @@
 //! - **Camera.** Back-to-back exposures of 2 s ending at t = 2, 4, ... s;
 //!   the measurement is the mean of the pointing over the exposure (10 ms
 //!   samples), minus the lock position, plus N(0, noise) from the paper's
-//!   generator (one per run and seed).
+//!   generator (one per run and seed). A night's guider (`crate::night`)
+//!   sets another exposure, a frame interval longer than it, and holds the
+//!   camera while it calibrates ([`Rig::start_guider`],
+//!   [`Rig::hold_camera`]), with its own guider off and each exposure taken
+//!   ([`Rig::take_exposure`]).
 //! - **Guider.** PHD2's hysteresis (aggressiveness 0.7, hysteresis 0.1, min
 //!   move 0.2) turns the measurement into a correction; the pulse lasts
 //!   correction / guide rate (0.5x sidereal, 7.52 arcsec/s), at most 2.5 s,
@@ -42,10 +46,12 @@
 use crate::cases::Case;
 use crate::guide_algorithm::{GuideAlgorithm, Hysteresis};
 use crate::noise::Gaussian;
+use mkgp_mount::control_loop::port_motion::PortMotionCounters;
 use mkgp_mount::control_loop::port_mount::{LearnedFrame, LearnerSummary, PortMount, PortState};
 use mkgp_mount::control_loop::st4_feed::{EdgeQueue, EdgeSource, RawEdge};
 use mkgp_mount::control_loop::stepping::AxisStepper;
 use mkgp_mount::control_loop::{ControlLoop, FrameRecord};
+use mkgp_mount::model::guider::Faults;
 use mkgp_mount::mount::config::{Mount, MountConfig, SIDEREAL_ARCSEC_PER_S};
 use mkgp_mount::mount::frame::{Frame, Rates};
 use mkgp_mount::mount::guiding::{Guiding, GuidingCounters, FRAME_QUEUE};
@@ -193,6 +199,15 @@ impl AnyLearner {
         }
     }
 
+    /// The model's own fault counters (none without a learner).
+    fn faults(&self) -> Option<Faults> {
+        match self {
+            AnyLearner::None => None,
+            AnyLearner::One(l) => Some(l.guider().faults()),
+            AnyLearner::Mkgp(l) => Some(l.guider().faults()),
+        }
+    }
+
     fn reset(&mut self) {
         match self {
             AnyLearner::None => {}
@@ -263,8 +278,10 @@ struct LearningTask {
 }
 
 impl LearningTask {
-    /// Finishes the inference due by `now_us`, then starts the next.
-    fn run(&mut self, now_us: u64, record: &mut Vec<Frame>) {
+    /// Finishes the inference due by `now_us`, then starts the next; each
+    /// frame taken goes to `record`, and when it was taken and whether the
+    /// model learned from it to `learned`.
+    fn run(&mut self, now_us: u64, record: &mut Vec<Frame>, learned: &mut Vec<FrameLearned>) {
         if self
             .busy
             .as_ref()
@@ -279,14 +296,60 @@ impl LearningTask {
         }
         if let Some(r) = self.frames.pop_front() {
             record.push(r.frame);
-            let learned = self.learner.learn(r.frame);
-            self.busy = Some((now_us + INFERENCE_US, learned));
+            let before = self.learner.counters().learned;
+            let frame = self.learner.learn(r.frame);
+            learned.push(FrameLearned {
+                at_us: now_us,
+                learned: self.learner.counters().learned != before,
+            });
+            self.busy = Some((now_us + INFERENCE_US, frame));
         }
     }
 
     fn next_event_us(&self) -> Option<u64> {
         self.busy.as_ref().map(|(t, _)| *t)
     }
+}
+
+/// A frame the learning task took: when, and whether the model learned
+/// from it as gear error.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FrameLearned {
+    pub at_us: u64,
+    pub learned: bool,
+}
+
+/// One exposure of the guide camera, as it ended.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Exposure {
+    pub end_us: u64,
+    /// What the guider measures: the mean pointing over the exposure minus
+    /// the lock position, plus the camera's noise, arcsec.
+    pub measured_arcsec: f64,
+    /// The same without the noise: the truth.
+    pub pointing_arcsec: f64,
+    /// The mean gear error over the exposure, arcsec.
+    pub gear_error_arcsec: f64,
+}
+
+/// A pulse the guider sent.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SentPulse {
+    pub line: Line,
+    pub start_us: u64,
+    pub duration_us: u64,
+}
+
+/// What the guider did with a measurement.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Correction {
+    /// The guide algorithm's correction, or a dither's amount, arcsec
+    /// (positive: RA+, west).
+    pub arcsec: f64,
+    /// The pulse it sent, if any.
+    pub pulse: Option<SentPulse>,
+    /// The pulse was a dither's.
+    pub dither: bool,
 }
 
 /// The virtual rig: mount, camera, guider and the firmware.
@@ -314,6 +377,9 @@ pub struct Rig {
     /// `t + gear_phase_s` (0: the gear starts where the case does; another
     /// night starts elsewhere, `crate::nights`).
     pub gear_phase_s: f64,
+    /// The mount pushed by hand with the clutch released: the star moves by
+    /// this much, arcsec, with no step (0 unless `crate::night` pushes it).
+    pub hand_arcsec: f64,
     /// The score covers these seconds of the run, [from, until).
     pub score_window_s: (f64, f64),
     /// What moves the star besides the gear, and the random walk so far
@@ -323,14 +389,21 @@ pub struct Rig {
     /// A dither the guider sends with its next pulse: amount, arcsec.
     dither_next: Option<f64>,
     exposure_sum: f64,
+    exposure_gear_sum: f64,
     exposure_n: u32,
     next_exposure_end_us: u64,
+    /// The camera waits this long between exposures (0: back to back).
+    frame_gap_us: u64,
+    /// The exposure that ended last, until taken ([`Rig::take_exposure`]).
+    exposure: Option<Exposure>,
     last_pulse_end_us: u64,
     score_sq: f64,
     score_n: u64,
     pub extremes: Extremes,
     /// Every frame the learner took (for tests).
     pub frames: Vec<Frame>,
+    /// For each of them, when it was taken and whether it was learned.
+    pub frames_learned: Vec<FrameLearned>,
     /// Every feed-forward installed (for tests): (time us, rate).
     pub feed_forwards: Vec<(u64, f32)>,
     /// The newest learned frame the guiding task took, for the command
@@ -384,13 +457,17 @@ impl Rig {
             guider_on: true,
             lock_arcsec: 0.0,
             gear_phase_s: 0.0,
+            hand_arcsec: 0.0,
             score_window_s: (SCORE_FROM_S, f64::INFINITY),
             sky: Sky::default(),
             walk: (0.0, Gaussian::new(seed + 1000)),
             dither_next: None,
             exposure_sum: 0.0,
+            exposure_gear_sum: 0.0,
             exposure_n: 0,
             next_exposure_end_us: GuiderSettings::default().exposure_us(),
+            frame_gap_us: 0,
+            exposure: None,
             last_pulse_end_us: 0,
             score_sq: 0.0,
             score_n: 0,
@@ -400,6 +477,7 @@ impl Rig {
                 ..Extremes::default()
             },
             frames: Vec::new(),
+            frames_learned: Vec::new(),
             feed_forwards: Vec::new(),
             learned: None,
         };
@@ -412,6 +490,47 @@ impl Rig {
         self.hysteresis = Hysteresis::new(guider.aggressiveness, 0.1, guider.min_move);
         self.next_exposure_end_us = self.now_us + guider.exposure_us();
         self.guider = guider;
+    }
+
+    /// A guider started afresh now (no memory of an earlier one: its
+    /// hysteresis starts from nothing), whose camera exposes for
+    /// `guider.exposure_s` every `interval_s` (at least the exposure), the
+    /// first exposure starting now.
+    pub fn start_guider(&mut self, guider: GuiderSettings, interval_s: f64) {
+        self.set_guider(guider);
+        self.dither_next = None;
+        let interval_us = (interval_s * 1e6) as u64;
+        self.frame_gap_us = interval_us.saturating_sub(guider.exposure_us());
+        self.hold_camera(self.now_us);
+    }
+
+    /// The camera takes no exposure before `until_us` (the guider waits for
+    /// a pulse, or pauses): the next one starts then.
+    pub fn hold_camera(&mut self, until_us: u64) {
+        self.next_exposure_end_us = until_us.max(self.now_us) + self.guider.exposure_us();
+        self.exposure_sum = 0.0;
+        self.exposure_gear_sum = 0.0;
+        self.exposure_n = 0;
+        self.exposure = None;
+    }
+
+    /// When the exposure under way ends, us.
+    pub fn next_exposure_end_us(&self) -> u64 {
+        self.next_exposure_end_us
+    }
+
+    /// The exposure that ended last, once (the guider's own measurement
+    /// happens whether or not `guider_on`).
+    pub fn take_exposure(&mut self) -> Option<Exposure> {
+        self.exposure.take()
+    }
+
+    /// Runs until the exposure under way has been taken (at the first
+    /// pointing sample at or after its end), or until `limit_us`.
+    pub fn run_to_exposure(&mut self, limit_us: u64) -> Option<Exposure> {
+        let end = self.next_exposure_end_us.div_ceil(SAMPLE_US) * SAMPLE_US;
+        self.run_until(end.min(limit_us));
+        self.take_exposure()
     }
 
     /// Sets what moves the star besides the gear; call before the run.
@@ -511,6 +630,22 @@ impl Rig {
         self.control.st4_counters()
     }
 
+    /// The model's own fault counters (none for the guider alone).
+    pub fn model_faults(&self) -> Option<Faults> {
+        self.learning.learner.faults()
+    }
+
+    /// What the command port's motion did and refused.
+    pub fn port_counters(&self) -> PortMotionCounters {
+        self.control.port_counters()
+    }
+
+    /// ST4 edges a full queue lost (none in the simulation, whose queue
+    /// never overflows; counted by the loop all the same).
+    pub fn lost_edges(&self) -> u32 {
+        self.control.lost_edges()
+    }
+
     /// The firmware's guiding state (feed-forward, silence).
     pub fn guiding(&self) -> &Guiding {
         self.control.guiding()
@@ -535,15 +670,40 @@ impl Rig {
         self.ra_steps() as f64 * a - SIDEREAL_ARCSEC_PER_S * self.now_us as f64 * 1e-6
     }
 
+    /// Gear time now: RA steps / sidereal steps per second, s.
+    pub fn gear_time_s(&self) -> f64 {
+        self.ra_steps() as f64 / self.mount.sidereal_ra_steps_per_s_f64()
+    }
+
+    /// The gear error now, arcsec.
+    pub fn gear_error_arcsec(&self) -> f64 {
+        self.case.gear_error(self.gear_time_s() + self.gear_phase_s)
+    }
+
     /// The pointing error now: the axis' lag behind the sky, arcsec.
     pub fn pointing_arcsec(&self) -> f64 {
-        let gear_s = self.ra_steps() as f64 / self.mount.sidereal_ra_steps_per_s_f64();
-        self.case.gear_error(gear_s + self.gear_phase_s) - self.applied_arcsec() + self.sky_arcsec()
+        self.pointing_with(self.gear_error_arcsec())
+    }
+
+    /// The pointing error with the gear error `gear_arcsec`.
+    fn pointing_with(&self, gear_arcsec: f64) -> f64 {
+        gear_arcsec - self.applied_arcsec() + self.sky_arcsec() + self.hand_arcsec
+    }
+
+    /// The Dec axis' steps since the start, arcsec (no Dec error is
+    /// modelled: only the guider's Dec pulses and the port's motion move it).
+    pub fn dec_arcsec(&self) -> f64 {
+        self.dec_steps() as f64 * 3600.0 / self.mount.config().dec_steps_per_degree as f64
     }
 
     /// Residual RMS over the scored samples so far.
     pub fn score(&self) -> f64 {
         (self.score_sq / self.score_n.max(1) as f64).sqrt()
+    }
+
+    /// The sum of the squared residuals scored so far, and their number.
+    pub fn score_sums(&self) -> (f64, u64) {
+        (self.score_sq, self.score_n)
     }
 
     /// A raw edge at `at_us` (not before now).
@@ -586,11 +746,13 @@ impl Rig {
             let t = self.next_event_us(end_us);
             self.advance_steppers(t);
             self.now_us = t;
-            self.learning.run(t, &mut self.frames);
+            self.learning
+                .run(t, &mut self.frames, &mut self.frames_learned);
             let edge_due = self.edges.front().is_some_and(|e| e.0 <= t);
             if edge_due || t >= self.control.next_wake_us() {
                 self.guiding_task();
-                self.learning.run(t, &mut self.frames);
+                self.learning
+                    .run(t, &mut self.frames, &mut self.frames_learned);
             }
             if t.is_multiple_of(SAMPLE_US) {
                 self.sample();
@@ -655,61 +817,98 @@ impl Rig {
             let (walk, g) = &mut self.walk;
             *walk += self.sky.walk_arcsec_per_sqrt_min / 60f64.sqrt() * g.next();
         }
-        let p = self.pointing_arcsec();
+        let gear = self.gear_error_arcsec();
+        let p = self.pointing_with(gear);
         let t = self.now_us as f64 * 1e-6;
         if (self.score_window_s.0..self.score_window_s.1).contains(&t) {
             let r = p - self.lock_arcsec;
             self.score_sq += r * r;
             self.score_n += 1;
         }
-        self.exposure_sum += p;
-        self.exposure_n += 1;
+        let exposure_us = self.guider.exposure_us();
+        // Within the exposure: (its end - its length, its end].
+        if self.now_us + exposure_us > self.next_exposure_end_us {
+            self.exposure_sum += p;
+            self.exposure_gear_sum += gear;
+            self.exposure_n += 1;
+        }
         if self.now_us >= self.next_exposure_end_us {
-            let mean = self.exposure_sum / self.exposure_n.max(1) as f64;
+            let n = self.exposure_n.max(1) as f64;
+            let mean = self.exposure_sum / n;
+            let pointing = mean - self.lock_arcsec;
+            let gear_error = self.exposure_gear_sum / n;
             self.exposure_sum = 0.0;
+            self.exposure_gear_sum = 0.0;
             self.exposure_n = 0;
-            self.next_exposure_end_us += self.guider.exposure_us();
+            self.next_exposure_end_us += exposure_us + self.frame_gap_us;
             let noise = match self.noise.as_mut() {
                 Some((sigma, g)) => *sigma * g.next(),
                 None => 0.0,
             };
+            let measured = mean - self.lock_arcsec + noise;
+            self.exposure = Some(Exposure {
+                end_us: self.now_us,
+                measured_arcsec: measured,
+                pointing_arcsec: pointing,
+                gear_error_arcsec: gear_error,
+            });
             if self.guider_on {
-                self.guide(mean - self.lock_arcsec + noise);
+                self.guide(measured);
             }
         }
     }
 
-    fn guide(&mut self, measured: f64) {
-        // The rate the guider believes in.
-        let guide_rate = self.mount.guide_rate_arcsec_per_s() as f64 * self.guider.calibration;
-        let start = (self.now_us + LATENCY_US).max(self.last_pulse_end_us + PULSE_GAP_US);
+    /// When the guider's last pulse ends, us.
+    pub fn pulses_end_us(&self) -> u64 {
+        self.last_pulse_end_us
+    }
+
+    /// The rate the guider believes in, arcsec/s.
+    pub fn believed_guide_rate(&self) -> f64 {
+        self.mount.guide_rate_arcsec_per_s() as f64 * self.guider.calibration
+    }
+
+    /// The guider sends a pulse on `line` as soon as it can after the
+    /// exposure that just ended: [`LATENCY_US`] on, after the pulse before
+    /// it.
+    pub fn send_pulse(&mut self, line: Line, duration_us: u64) -> SentPulse {
+        let start_us = (self.now_us + LATENCY_US).max(self.last_pulse_end_us + PULSE_GAP_US);
+        self.pulse(line, start_us, duration_us);
+        self.last_pulse_end_us = start_us + duration_us;
+        SentPulse {
+            line,
+            start_us,
+            duration_us,
+        }
+    }
+
+    /// The guider's answer to the exposure that just ended, measured
+    /// `measured` arcsec from the lock: the dither asked for, or the guide
+    /// algorithm's correction as an RA pulse (none below its minimum move).
+    pub fn guide(&mut self, measured: f64) -> Correction {
+        let guide_rate = self.believed_guide_rate();
+        let ra_line = |x: f64| if x > 0.0 { Line::RaPlus } else { Line::RaMinus };
         if let Some(amount) = self.dither_next.take() {
             let dur = (amount.abs() / guide_rate * 1e6) as u64;
-            let line = if amount > 0.0 {
-                Line::RaPlus
-            } else {
-                Line::RaMinus
-            };
-            self.pulse(line, start, dur);
-            self.last_pulse_end_us = start + dur;
+            let pulse = self.send_pulse(ra_line(amount), dur);
             // The mount moves ahead by the amount: the lag drops by it.
             self.lock_arcsec -= amount;
-            return;
+            return Correction {
+                arcsec: amount,
+                pulse: Some(pulse),
+                dither: true,
+            };
         }
         let control = self
             .hysteresis
             .step(0.0, measured, 10.0, self.guider.exposure_s);
         let dur = ((control.abs() / guide_rate * 1e6) as u64).min(MAX_PULSE_US);
-        if dur == 0 {
-            return;
+        let pulse = (dur > 0).then(|| self.send_pulse(ra_line(control), dur));
+        Correction {
+            arcsec: control,
+            pulse,
+            dither: false,
         }
-        let line = if control > 0.0 {
-            Line::RaPlus
-        } else {
-            Line::RaMinus
-        };
-        self.pulse(line, start, dur);
-        self.last_pulse_end_us = start + dur;
     }
 }
 

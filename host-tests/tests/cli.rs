@@ -163,7 +163,7 @@ fn unknown_subcommand_is_a_usage_error() {
 fn no_subcommand_is_a_usage_error() {
     let o = guide_sim(&[]);
     assert_eq!(o.status.code(), Some(2));
-    for sub in ["table", "replay", "bench", "st4", "nights"] {
+    for sub in ["table", "replay", "bench", "st4", "nights", "night"] {
         assert!(stderr(&o).contains(sub), "{}", stderr(&o));
     }
 }
@@ -250,6 +250,18 @@ fn each_subcommand_help_lists_its_options() {
                 "--csv",
             ],
         ),
+        (
+            "night",
+            &[
+                "--case <ID>",
+                "--cases <FILE>",
+                "--noise <PX>",
+                "--seed <N>",
+                "--csv",
+                "--phd2-log <FILE>",
+                "--truth <FILE>",
+            ],
+        ),
     ] {
         let o = guide_sim(&[sub, "--help"]);
         assert!(o.status.success(), "{sub}: {}", stderr(&o));
@@ -262,11 +274,28 @@ fn each_subcommand_help_lists_its_options() {
 }
 
 #[test]
+fn a_night_log_needs_one_night() {
+    // Refused before any night runs: every seed of C1 would write one file.
+    let o = guide_sim(&[
+        "night",
+        "--case",
+        "C1",
+        "--noise",
+        "1",
+        "--phd2-log",
+        "/nonexistent/x.txt",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("need one night"), "{}", stderr(&o));
+    assert!(stdout(&o).is_empty());
+}
+
+#[test]
 fn help_lists_the_subcommands() {
     let o = guide_sim(&["--help"]);
     assert!(o.status.success());
     let out = stdout(&o);
-    for sub in ["table", "replay", "bench", "st4", "nights"] {
+    for sub in ["table", "replay", "bench", "st4", "nights", "night"] {
         assert!(out.contains(&format!("  {sub} ")), "{out}");
     }
 }

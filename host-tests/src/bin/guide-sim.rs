@@ -9,6 +9,8 @@
 //!               [--aggressiveness A] [--exposure S] [--min-move PX] [--calibration K]
 //!               [--drift A] [--walk W] [--bump B] [--least-pulse-share F]
 //! guide-sim nights [--case ID] [--cases FILE] [--noise PX] [--park] [--csv]
+//! guide-sim night [--case ID] [--cases FILE] [--noise PX] [--seed N] [--csv]
+//!                 [--phd2-log FILE] [--truth FILE]
 //! guide-sim mount [--pty PATH] [--tcp PORT] [--case ID] [--cases FILE] [--noise PX]
 //!                 [--speed X] [--no-st4-guider]
 //! guide-sim view (--port DEVICE | --pty PATH | --tcp HOST:PORT) [--listen ADDR:PORT]
@@ -24,7 +26,7 @@ use host_tests::guide_algorithm::{GuideAlgorithm, Hysteresis};
 use host_tests::models::{self, Model};
 use host_tests::phd2_log::{self, GuideLog};
 use host_tests::replay::{self, ReplayResult};
-use host_tests::{mount_sim, nights, st4_sim};
+use host_tests::{mount_sim, night, nights, st4_sim};
 use host_tests::{svg, table};
 use rayon::prelude::*;
 use std::io::Write;
@@ -103,6 +105,25 @@ enum Command {
     /// with --park, where night 1 parked it (every phase carries over).
     #[command(verbatim_doc_comment)]
     Nights(NightsArgs),
+    /// A scripted night of many sections through the firmware's loop
+    ///
+    /// The firmware's closed loop as in `st4` (mount raised to 90x sidereal at
+    /// most, for the flip) through a scripted night of 6 h 40 min
+    /// (host-tests/src/night/script.rs, DEFAULT): five targets, seven guiding
+    /// sections, each with a calibration at its start and a guider that
+    /// remembers nothing of the one before, re-pointing through the command port
+    /// (both ways) and by hand with the clutch released, a meridian flip,
+    /// exposures of 1-4 s and frame intervals longer than them, dithers and
+    /// settling, downloads (10-30 s), refocus pauses, a star lost, 20 minutes of
+    /// clouds. Pointing RMS (arcsec = px) while the main camera images, per
+    /// section, for the whole night, and for each section's first 5 minutes,
+    /// for the guider alone, fw PPEC and fw MKGP; then the goals. Default: C1-C8,
+    /// noise 0 and 1 px, seeds 1-3 (48 nights, progress on stderr); --case,
+    /// --noise and --seed pick one. One night prints its sections and what the
+    /// firmware counted. --phd2-log FILE (one night) writes the guider alone's
+    /// side as a PHD2 guide log, --truth FILE the true gear error per guide row.
+    #[command(verbatim_doc_comment)]
+    Night(NightArgs),
     /// A virtual mount for LX200 clients: the firmware's loop on a pty, in real time
     ///
     /// The firmware's loop (ControlLoop, Learner<FIRMWARE_STAGES>, the step generators, as in
@@ -267,6 +288,21 @@ struct NightsArgs {
     park: bool,
 }
 
+#[derive(Args)]
+struct NightArgs {
+    #[command(flatten)]
+    runs: RunsArgs,
+    /// One seed [default: 1, 2 and 3]
+    #[arg(long, value_name = "N")]
+    seed: Option<u64>,
+    /// Write the guider alone's side as a PHD2 guide log (one night only)
+    #[arg(long, value_name = "FILE")]
+    phd2_log: Option<PathBuf>,
+    /// Write the true gear error per guide row of that log as CSV (one night only)
+    #[arg(long, value_name = "FILE")]
+    truth: Option<PathBuf>,
+}
+
 fn noise_px(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(x) if x.is_finite() && x >= 0.0 => Ok(x),
@@ -281,6 +317,7 @@ fn main() -> ExitCode {
         Command::Bench(args) => cmd_bench(args),
         Command::St4(args) => cmd_st4(args),
         Command::Nights(args) => cmd_nights(args),
+        Command::Night(args) => cmd_night(args),
         Command::Mount(args) => cmd_mount(args),
         Command::View(args) => cmd_view(args),
     }
@@ -768,4 +805,209 @@ fn cmd_st4(args: St4Args) -> ExitCode {
         );
     }
     ExitCode::SUCCESS
+}
+
+fn cmd_night(args: NightArgs) -> ExitCode {
+    let Some((cases, levels)) = closed_loop_runs(&args.runs) else {
+        return ExitCode::FAILURE;
+    };
+    let seeds = args.seed.map_or(st4_sim::SEEDS.to_vec(), |s| vec![s]);
+    let script = night::script::DEFAULT;
+    let one = cases.len() == 1 && levels.len() == 1 && seeds.len() == 1;
+    let logs = args.phd2_log.is_some() || args.truth.is_some();
+    if logs && !one {
+        eprintln!("guide-sim night: --phd2-log and --truth need one night: give --case, --noise and --seed");
+        return ExitCode::from(2);
+    }
+    let nights = if one {
+        night::night(&cases[0], levels[0], seeds[0], script, logs).map(|n| vec![n])
+    } else {
+        night::sweep(&cases, &levels, &seeds, script, |done, total, n| {
+            eprintln!(
+                "guide-sim night: {done}/{total} {} {} px seed {}",
+                n.case, n.noise_px, n.seed
+            );
+        })
+    };
+    let nights = match nights {
+        Ok(n) => n,
+        Err(e) => {
+            eprintln!("guide-sim night: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    if let Some(logs) = nights[0].guider_only.logs.as_ref() {
+        for (path, text) in [(&args.phd2_log, &logs.phd2), (&args.truth, &logs.truth)] {
+            if let Some(p) = path {
+                if let Err(e) = std::fs::write(p, text) {
+                    eprintln!("guide-sim night: cannot write {}: {e}", p.display());
+                    return ExitCode::FAILURE;
+                }
+            }
+        }
+    }
+    if args.runs.csv {
+        println!("{}", night::goals::CSV_HEADER);
+        for n in &nights {
+            for row in night::goals::csv_rows(n) {
+                println!("{row}");
+            }
+        }
+        return ExitCode::SUCCESS;
+    }
+    if one {
+        print_night_sections(&nights[0]);
+    }
+    print_night_goals(&nights);
+    ExitCode::SUCCESS
+}
+
+/// One night's sections, and what the firmware counted.
+fn print_night_sections(n: &night::Night) {
+    use night::goals;
+    println!(
+        "Night: {} at {} px, seed {}; pointing RMS (arcsec = px) while imaging; first5/settled: fw MKGP's first 5 min of guiding over the rest",
+        n.case, n.noise_px, n.seed
+    );
+    println!(
+        "{:<7} {:<6} {:>10} {:>9} {:>12} {:>9} {:>9} {:>10} {:>14} {:>20}",
+        "section",
+        "target",
+        "exposure",
+        "imaging_s",
+        "guider_only",
+        "fw_ppec",
+        "fw_mkgp",
+        "mkgp/only",
+        "first5/settled",
+        "alone first5/settled"
+    );
+    let ratios: Vec<f64> = goals::section_ratios(&n.fw_mkgp, &n.guider_only).collect();
+    let firsts: Vec<f64> = goals::first_ratios(&n.fw_mkgp).collect();
+    let alone: Vec<f64> = goals::first_ratios(&n.guider_only).collect();
+    for (i, m) in n.fw_mkgp.sections.iter().enumerate() {
+        let s = &m.section;
+        println!(
+            "{:<7} {:<6} {:>10} {:>9.0} {:>12.3} {:>9.3} {:>9.3} {:>10.3} {:>14.3} {:>20.3}",
+            i + 1,
+            s.target,
+            format!("{}/{} s", s.exposure_s, s.interval_s),
+            m.all.seconds(),
+            n.guider_only.sections[i].all.rms(),
+            n.fw_ppec.sections[i].all.rms(),
+            m.all.rms(),
+            ratios[i],
+            firsts[i],
+            alone[i]
+        );
+    }
+    let whole = n.fw_mkgp.night();
+    println!(
+        "{:<7} {:<6} {:>10} {:>9.0} {:>12.3} {:>9.3} {:>9.3} {:>10.3}",
+        "night",
+        "",
+        "",
+        whole.seconds(),
+        n.guider_only.night().rms(),
+        n.fw_ppec.night().rms(),
+        whole.rms(),
+        whole.rms() / n.guider_only.night().rms()
+    );
+    let m = &n.fw_mkgp;
+    println!(
+        "fw MKGP: frames the learner took in each activity's windows, and learned as gear error:"
+    );
+    println!(
+        "{:<12} {:>7} {:>9} {:>7} {:>8}",
+        "activity", "windows", "seconds", "frames", "learned"
+    );
+    for (a, t) in &m.tallies {
+        println!(
+            "{:<12} {:>7} {:>9.0} {:>7} {:>8}",
+            a.name(),
+            t.windows,
+            t.seconds,
+            t.frames,
+            t.learned
+        );
+    }
+    let c = &m.counters;
+    println!("fw MKGP learner: {:?}", c.learner);
+    println!("fw MKGP guiding: {:?}", c.guiding);
+    println!("fw MKGP model faults: {:?}", c.faults.unwrap_or_default());
+    println!(
+        "fw MKGP st4: {:?}; port: {:?}; lost edges {}",
+        c.st4, c.port, c.lost_edges
+    );
+    let threshold = n.dither_threshold_arcsec;
+    let big = m.dithers.iter().filter(|d| d.abs() > threshold).count();
+    println!(
+        "dithers: {} ({} longer than the firmware's dither threshold, {threshold:.1} arcsec)",
+        m.dithers.len(),
+        big
+    );
+}
+
+/// Each night's figures against the goals, and which goals hold.
+fn print_night_goals(nights: &[night::Night]) {
+    use night::goals::{self, FIRST, SECTION, WHOLE_NIGHT};
+    println!(
+        "Goals (fw MKGP): whole night <= {WHOLE_NIGHT} x the guider alone on C5-C8 at 1 px; \
+         no section above {SECTION} x; the first 5 min of each later section <= {FIRST} x its settled figure"
+    );
+    println!(
+        "{:<5} {:>5} {:>4} {:>12} {:>8} {:>8} {:>10} {:>14} {:>14}  misses",
+        "case",
+        "noise",
+        "seed",
+        "guider_only",
+        "fw_ppec",
+        "fw_mkgp",
+        "mkgp/only",
+        "worst_section",
+        "worst_first5"
+    );
+    let mut met = [(0usize, 0usize); 3];
+    for n in nights {
+        let f = goals::figures(n);
+        let misses = goals::misses(n);
+        println!(
+            "{:<5} {:>5} {:>4} {:>12.3} {:>8.3} {:>8.3} {:>10.3} {:>9.3} ({}) {:>9.3} ({})  {}",
+            n.case,
+            n.noise_px,
+            n.seed,
+            n.guider_only.night().rms(),
+            n.fw_ppec.night().rms(),
+            n.fw_mkgp.night().rms(),
+            f.whole,
+            f.worst_section.0,
+            f.worst_section.1 + 1,
+            f.worst_first.0,
+            f.worst_first.1 + 1,
+            if misses.is_empty() {
+                "-".to_string()
+            } else {
+                misses.join("; ")
+            }
+        );
+        if goals::whole_applies(n) {
+            met[0].1 += 1;
+            met[0].0 += usize::from(goals::meets(f.whole, WHOLE_NIGHT));
+        }
+        met[1].1 += 1;
+        met[1].0 += usize::from(goals::meets(f.worst_section.0, SECTION));
+        met[2].1 += 1;
+        met[2].0 += usize::from(goals::meets(f.worst_first.0, FIRST));
+    }
+    let names = [
+        format!("whole night <= {WHOLE_NIGHT} x guider alone (C5-C8, 1 px)"),
+        format!("every section <= {SECTION} x guider alone"),
+        format!("first 5 min <= {FIRST} x settled"),
+    ];
+    for (name, (ok, of)) in names.iter().zip(met) {
+        if of > 0 {
+            let verdict = if ok == of { "met" } else { "NOT met" };
+            println!("goal, {name}: {verdict} (holds on {ok} of {of} nights)");
+        }
+    }
 }

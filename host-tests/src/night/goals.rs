@@ -1,0 +1,152 @@
+//! The issue's goals for a night (issue 27, "Goals"), and the rows
+//! `guide-sim night` prints:
+//!
+//! - the whole night's fw MKGP at most [`WHOLE_NIGHT`] of the guider
+//!   alone on C5-C8 at 1 px;
+//! - no section's fw MKGP above [`SECTION`] of the guider alone's, on any
+//!   case;
+//! - the first [`FIRST_S`](super::session::FIRST_S) of each section after
+//!   the first within [`FIRST`] of that section's settled figure (fw
+//!   MKGP's own, after those first minutes).
+
+use super::{Night, NightRun};
+
+pub const WHOLE_NIGHT: f64 = 0.8;
+pub const SECTION: f64 = 1.0;
+pub const FIRST: f64 = 1.2;
+/// The cases the whole-night goal covers, at 1 px.
+pub const HARD_CASES: [&str; 4] = ["C5", "C6", "C7", "C8"];
+
+/// A night's figures against the goals (fw MKGP).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Figures {
+    /// The whole night's RMS over the guider alone's.
+    pub whole: f64,
+    /// The highest section ratio to the guider alone, and its section
+    /// (0-based).
+    pub worst_section: (f64, usize),
+    /// The highest first-minutes RMS over the settled RMS of a section
+    /// after the first, and its section.
+    pub worst_first: (f64, usize),
+}
+
+/// The largest of `values` with its index (NaN-free values only).
+fn worst(values: impl Iterator<Item = (usize, f64)>) -> (f64, usize) {
+    values
+        .filter(|(_, v)| v.is_finite())
+        .fold((f64::NAN, 0), |(m, i), (j, v)| {
+            if m.is_nan() || v > m {
+                (v, j)
+            } else {
+                (m, i)
+            }
+        })
+}
+
+/// Each section's RMS of `run` over the guider alone's.
+pub fn section_ratios<'a>(
+    run: &'a NightRun,
+    alone: &'a NightRun,
+) -> impl Iterator<Item = f64> + 'a {
+    run.sections
+        .iter()
+        .zip(&alone.sections)
+        .map(|(s, g)| s.all.rms() / g.all.rms())
+}
+
+/// Each section's first minutes over its settled figure (NaN for the
+/// first section, which has nothing to carry over).
+pub fn first_ratios(run: &NightRun) -> impl Iterator<Item = f64> + '_ {
+    run.sections.iter().enumerate().map(|(i, s)| {
+        if i == 0 {
+            f64::NAN
+        } else {
+            s.first.rms() / s.settled.rms()
+        }
+    })
+}
+
+pub fn figures(n: &Night) -> Figures {
+    Figures {
+        whole: n.fw_mkgp.night().rms() / n.guider_only.night().rms(),
+        worst_section: worst(section_ratios(&n.fw_mkgp, &n.guider_only).enumerate()),
+        worst_first: worst(first_ratios(&n.fw_mkgp).enumerate()),
+    }
+}
+
+/// Whether the whole-night goal covers this night.
+pub fn whole_applies(n: &Night) -> bool {
+    n.noise_px == 1.0 && HARD_CASES.contains(&n.case.as_str())
+}
+
+/// A figure at or below its goal (NaN: not).
+pub fn meets(figure: f64, goal: f64) -> bool {
+    figure <= goal
+}
+
+/// The goals a night misses, in words (empty: all met).
+pub fn misses(n: &Night) -> Vec<String> {
+    let f = figures(n);
+    let mut out = Vec::new();
+    if whole_applies(n) && !meets(f.whole, WHOLE_NIGHT) {
+        out.push(format!("whole night {:.3} > {WHOLE_NIGHT}", f.whole));
+    }
+    if !meets(f.worst_section.0, SECTION) {
+        out.push(format!(
+            "section {} {:.3} > {SECTION}",
+            f.worst_section.1 + 1,
+            f.worst_section.0
+        ));
+    }
+    if !meets(f.worst_first.0, FIRST) {
+        out.push(format!(
+            "section {} first minutes {:.3} x settled > {FIRST}",
+            f.worst_first.1 + 1,
+            f.worst_first.0
+        ));
+    }
+    out
+}
+
+pub const CSV_HEADER: &str = "case,noise_px,seed,section,target,exposure_s,interval_s,\
+imaging_s,guider_only,fw_ppec,fw_mkgp,fw_mkgp_first5,fw_mkgp_settled,guider_only_first5,\
+guider_only_settled";
+
+/// A night as CSV rows: one per section, then `night` for the whole.
+pub fn csv_rows(n: &Night) -> Vec<String> {
+    let head = format!("{},{},{}", n.case, n.noise_px, n.seed);
+    let mut rows: Vec<String> = n
+        .fw_mkgp
+        .sections
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            let s = &m.section;
+            let g = &n.guider_only.sections[i];
+            format!(
+                "{head},{},{},{},{},{:.0},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3}",
+                i + 1,
+                s.target,
+                s.exposure_s,
+                s.interval_s,
+                m.all.seconds(),
+                g.all.rms(),
+                n.fw_ppec.sections[i].all.rms(),
+                m.all.rms(),
+                m.first.rms(),
+                m.settled.rms(),
+                g.first.rms(),
+                g.settled.rms()
+            )
+        })
+        .collect();
+    let night = n.fw_mkgp.night();
+    rows.push(format!(
+        "{head},night,,,,{:.0},{:.3},{:.3},{:.3},,,,",
+        night.seconds(),
+        n.guider_only.night().rms(),
+        n.fw_ppec.night().rms(),
+        night.rms()
+    ));
+    rows
+}

@@ -1,0 +1,305 @@
+//! A scripted night through the firmware's loop (`guide-sim night`, issue
+//! 27): the default script holds every event a night holds; one night (C5
+//! at 1 px, seed 1) runs through, its counters show each event for what it
+//! was, and the issue's goals that hold are asserted at the goal; the
+//! guider's PHD2 log reads back with the replay's parser, and the logs in
+//! `data/night-logs` are what the command writes. The full sweep (C1-C8,
+//! 0 and 1 px, seeds 1-3) is the command's (docs/results.md, "A night").
+
+use host_tests::cases::{self, Case};
+use host_tests::data::{self, cases_file};
+use host_tests::night::goals;
+use host_tests::night::ledger::Activity;
+use host_tests::night::script::{self, Kind, Way, What, DEFAULT};
+use host_tests::night::session::TRUTH_HEADER;
+use host_tests::night::{self, NightRun, MAX_RATE_SIDEREAL};
+use host_tests::phd2_log;
+use host_tests::st4_sim::Firmware;
+use std::collections::BTreeSet;
+use std::path::Path;
+use std::sync::OnceLock;
+
+fn case(name: &str) -> Case {
+    let cases = cases::load(&cases_file()).unwrap_or_else(|e| panic!("{e}"));
+    cases.into_iter().find(|c| c.name == name).unwrap()
+}
+
+fn starts() -> Vec<script::Section> {
+    DEFAULT
+        .iter()
+        .filter_map(|e| match e.what {
+            What::Start(s) => Some(s),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn the_default_script_holds_every_event_kind() {
+    script::check(DEFAULT, MAX_RATE_SIDEREAL as f64).unwrap_or_else(|e| panic!("{e}"));
+    assert!(script::length_s(DEFAULT) >= 6.0 * 3600.0);
+    let kinds: BTreeSet<Kind> = DEFAULT.iter().map(|e| e.what.kind()).collect();
+    assert_eq!(
+        kinds,
+        Kind::ALL.into_iter().collect(),
+        "every kind of event"
+    );
+    let sections = starts();
+    let targets: BTreeSet<&str> = sections.iter().map(|s| s.target).collect();
+    assert!(targets.len() >= 5, "{targets:?}");
+    // Re-pointed through the port both ways, and by hand.
+    for way in [Way::West, Way::East] {
+        assert!(DEFAULT
+            .iter()
+            .any(|e| matches!(e.what, What::Slew { way: w, .. } if w == way)));
+    }
+    assert!(DEFAULT
+        .iter()
+        .any(|e| matches!(e.what, What::Push { hours } if hours != 0.0)));
+    // Refocus pauses of 2-10 minutes, a 20-minute cloud gap, a star lost
+    // for a few frames.
+    assert!(DEFAULT.iter().any(
+        |e| matches!(e.what, What::Refocus { seconds } if (120.0..=600.0).contains(&seconds))
+    ));
+    assert!(DEFAULT
+        .iter()
+        .any(|e| matches!(e.what, What::Clouds { seconds } if seconds >= 1200.0)));
+    assert!(DEFAULT
+        .iter()
+        .any(|e| matches!(e.what, What::LoseStar { frames } if (2..=10).contains(&frames))));
+    // Exposures of 1 to 4 s changing between targets, frames further apart
+    // than the exposure, dithers and downloads of 10-30 s.
+    let exposures: BTreeSet<u64> = sections
+        .iter()
+        .map(|s| (s.exposure_s * 1000.0) as u64)
+        .collect();
+    assert_eq!(exposures.first(), Some(&1000));
+    assert_eq!(exposures.last(), Some(&4000));
+    assert!(exposures.len() >= 3, "{exposures:?}");
+    assert!(sections.iter().any(|s| s.interval_s > s.exposure_s));
+    assert!(sections.iter().all(|s| s.dither_px > 0.0));
+    assert!(sections
+        .iter()
+        .all(|s| 10.0 <= s.download_s.0 && s.download_s.1 <= 30.0));
+    // The guider restarts on the same target with nothing re-pointed.
+    let restarted = DEFAULT.windows(2).any(|w| {
+        matches!((w[0].what, w[1].what), (What::Stop, What::Start(_))) && {
+            let i = DEFAULT
+                .iter()
+                .rposition(|e| matches!(e.what, What::Start(_)) && e.at_s < w[0].at_s);
+            matches!((i.map(|i| DEFAULT[i].what), w[1].what),
+                (Some(What::Start(a)), What::Start(b)) if a.target == b.target)
+        }
+    });
+    assert!(restarted, "a restart without re-pointing");
+}
+
+/// C5 at 1 px, seed 1: the guider alone (with its PHD2 log) and fw MKGP.
+struct TestNight {
+    alone: NightRun,
+    mkgp: NightRun,
+}
+
+fn test_night() -> &'static TestNight {
+    static NIGHT: OnceLock<TestNight> = OnceLock::new();
+    NIGHT.get_or_init(|| {
+        let c = case("C5");
+        let run = |fw, log| night::run(&c, fw, 1.0, 1, DEFAULT, log).unwrap();
+        let (alone, mkgp) = rayon::join(
+            || run(Firmware::GuiderOnly, true),
+            || run(Firmware::Mkgp, false),
+        );
+        TestNight { alone, mkgp }
+    })
+}
+
+#[test]
+fn the_night_runs_through_and_the_counters_say_what_happened() {
+    let n = test_night();
+    for run in [&n.alone, &n.mkgp] {
+        assert_eq!(run.sections.len(), starts().len());
+        for s in &run.sections {
+            assert!(s.all.n > 0 && s.first.n > 0 && s.settled.n > 0, "{s:?}");
+        }
+        let e = run.extremes;
+        assert_eq!(e.non_finite, 0);
+        assert!(e.ra_min >= 0.0);
+    }
+    let m = &n.mkgp;
+    let c = m.counters;
+    // The firmware takes a pulse longer than its dither threshold for a
+    // dither, and nothing else: every dither of the night that long, and
+    // each settled without learning for the model's settling frames.
+    let threshold = night::dither_threshold_arcsec(&case("C5"));
+    let long = m.dithers.iter().filter(|d| d.abs() > threshold).count() as u32;
+    assert!(long > 0, "the script's wide dithers");
+    assert_eq!(c.guiding.dithers, long, "{:?}", c.guiding);
+    assert_eq!(c.learner.dithers, long, "{:?}", c.learner);
+    assert!(c.learner.not_learned >= 10 * long, "{:?}", c.learner);
+    // Every re-pointing through the port was carried out.
+    let slews = DEFAULT
+        .iter()
+        .filter(|e| matches!(e.what, What::Slew { .. } | What::Flip))
+        .count() as u32;
+    assert_eq!(c.port.manual_moves, slews, "{:?}", c.port);
+    assert_eq!(
+        m.tally(Activity::Calibration).windows as usize,
+        starts().len()
+    );
+    // No fault counter raised by an ordinary night: the model's faults,
+    // frames lost between the tasks, feed-forwards refused, time running
+    // back, stray pulse ends, edges lost, the ST4 line faults, a port
+    // command refused. (The ST4 `glitches` count the guider's pulses
+    // shorter than the 1 ms debounce, which PHD2's hysteresis sends when
+    // its previous correction nearly cancels the new one; `ra_clamped`
+    // counts the port's manual motion, whose RA rate is clamped to [0,
+    // max] by design: east at the highest rate stops the axis.)
+    let faults = c.faults.expect("the model's faults");
+    assert_eq!(faults, Default::default(), "{faults:?}");
+    let g = c.guiding;
+    assert_eq!(
+        (
+            g.frames_dropped,
+            g.feed_forward_rejected,
+            g.time_backwards,
+            g.stray_ends,
+            g.dec_clamped
+        ),
+        (0, 0, 0, 0, 0),
+        "{g:?}"
+    );
+    assert_eq!(c.lost_edges, 0);
+    let s = c.st4;
+    assert_eq!(
+        (s.both_lines, s.capped, s.stuck, s.out_of_order, s.dropped),
+        (0, 0, 0, 0, 0),
+        "{s:?}"
+    );
+    assert_eq!((c.port.port_refused, c.port.st4_refused), (0, 0));
+}
+
+/// The issue's night goals that hold on every night of the sweep, at the
+/// goal, on this night: the whole night at most 0.8 x the guider alone on
+/// C5-C8 at 1 px (0.54-0.75 measured, docs/results.md, "A night"). The
+/// others do not hold yet and are the command's to report: no section
+/// above the guider alone (up to 1.20 on C1-C4), a section's first 5
+/// minutes within 1.2 x its settled figure (up to 3.6).
+#[test]
+fn the_goals_that_hold() {
+    let n = test_night();
+    let whole = n.mkgp.night().rms() / n.alone.night().rms();
+    assert!(whole <= goals::WHOLE_NIGHT, "whole night {whole:.3}");
+}
+
+#[test]
+fn the_phd2_log_reads_back() {
+    let n = test_night();
+    let logs = n.alone.logs.as_ref().expect("the guider's log");
+    let log = phd2_log::parse(&logs.phd2, Path::new("night.txt")).unwrap_or_else(|e| panic!("{e}"));
+    let truth: Vec<Vec<f64>> = logs
+        .truth
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|f| f.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(logs.truth.lines().next(), Some(TRUTH_HEADER));
+    // Every guide row, in order, with its section's time.
+    assert_eq!(log.frames.len(), truth.len());
+    for (f, t) in log.frames.iter().zip(&truth) {
+        assert_eq!(f.frame, t[1] as u64);
+        assert!((f.time_s - t[2]).abs() < 1e-9, "{f:?} {t:?}");
+        // The log's 3 decimals against the truth's 4.
+        assert!((f.ra_raw - t[6]).abs() < 6e-4, "{f:?} {t:?}");
+    }
+    // Each section's clock starts again: one reset per later section.
+    let resets = log
+        .frames
+        .windows(2)
+        .filter(|w| w[1].time_s < w[0].time_s)
+        .count();
+    assert_eq!(resets, starts().len() - 1);
+    // The exposure of the first section, and every section's in its header.
+    assert_eq!(log.exposure_s, starts()[0].exposure_s);
+    let exposures: Vec<f64> = logs
+        .phd2
+        .split("\nGuiding Begins at ")
+        .skip(1)
+        .map(|s| {
+            let line = s.lines().find(|l| l.starts_with("Exposure = ")).unwrap();
+            phd2_log::limits::exposure_s(&line["Exposure =".len()..]).unwrap()
+        })
+        .collect();
+    let want: Vec<f64> = starts().iter().map(|s| s.exposure_s).collect();
+    assert_eq!(exposures, want);
+    // Every dither, its amount as the move of the lock (PHD2's sign).
+    assert_eq!(log.dithers.len(), n.alone.dithers.len());
+    for (d, amount) in log.dithers.iter().zip(&n.alone.dithers) {
+        assert!((d.x + amount).abs() < 5e-4, "{d:?} {amount}");
+    }
+    // The guider measured the truth plus the camera's 1 px noise.
+    let dither_rows: BTreeSet<usize> = log.dithers.iter().map(|d| d.next_frame).collect();
+    let noise: Vec<f64> = log
+        .frames
+        .iter()
+        .zip(&truth)
+        .enumerate()
+        .filter(|(i, _)| !dither_rows.contains(i))
+        .map(|(_, (f, t))| f.ra_raw - t[5])
+        .collect();
+    let rms = (noise.iter().map(|x| x * x).sum::<f64>() / noise.len() as f64).sqrt();
+    assert!((0.95..1.05).contains(&rms), "noise {rms:.3} px");
+    // Sections, calibrations and DROP rows as PHD2 writes them.
+    let text = &logs.phd2;
+    assert_eq!(
+        text.matches("\nCalibration Begins at ").count(),
+        starts().len()
+    );
+    assert_eq!(
+        text.matches("\nCalibration complete, mount = ").count(),
+        starts().len()
+    );
+    assert_eq!(text.matches("\nGuiding Ends at ").count(), starts().len());
+    assert!(text.contains(",\"DROP\",,,,,,,,,,,,,0,0.00,3,\"Star lost - low mass\"\n"));
+    assert!(text.contains("\nINFO: SETTLING STATE CHANGE, Settling complete\n"));
+    assert!(text.contains("Pier side = East"), "after the flip");
+}
+
+/// The night logs in `data/night-logs`: each is what `guide-sim night`
+/// writes for its case, noise and seed (data/README.md), and reads back.
+#[test]
+fn the_night_logs_in_data_are_the_commands() {
+    let dir = data::data_dir().join("night-logs");
+    for (name, noise, seed) in [("C5", 1.0, 1), ("C8", 1.0, 2), ("C2", 0.0, 3)] {
+        let stem = format!("night_{name}_{noise}px_seed{seed}");
+        let read = |ext: &str| {
+            let p = dir.join(format!("{stem}.{ext}"));
+            std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+        };
+        let (phd2, truth) = (read("txt"), read("truth.csv"));
+        let logs = if (name, noise, seed) == ("C5", 1.0, 1) {
+            test_night().alone.logs.clone().unwrap()
+        } else {
+            night::run(
+                &case(name),
+                Firmware::GuiderOnly,
+                noise,
+                seed,
+                DEFAULT,
+                true,
+            )
+            .unwrap()
+            .logs
+            .unwrap()
+        };
+        assert!(
+            logs.phd2 == phd2,
+            "{stem}.txt is not what the command writes"
+        );
+        assert!(
+            logs.truth == truth,
+            "{stem}.truth.csv is not what the command writes"
+        );
+        let log = phd2_log::parse(&phd2, Path::new(&stem)).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(log.frames.len() + 1, truth.lines().count(), "{stem}");
+    }
+}
