@@ -6,7 +6,7 @@ use super::port_mount::{PortMount, PortState, StoreRequest};
 use super::st4_feed::{EdgeQueue, EdgeSource, RawEdge};
 use super::*;
 use crate::mount::config::MountConfig;
-use crate::mount::frame::FrameKind;
+use crate::mount::frame::{FeedForward, FrameKind, PulseShare};
 use crate::mount::st4::Line;
 use crate::port::coords::{Dec, Equatorial, Ra};
 use crate::port::interpreter::STORE_REPLY_TIMEOUT_US;
@@ -260,6 +260,48 @@ fn manual_motion_is_bounded_and_not_learned() {
     assert_eq!(r.rates.ra_steps_per_s, 0.0);
     assert_eq!(r.ask(":GT#"), "00.0#");
     assert!((r.lp.guiding().applied_arcsec() - c).abs() < step);
+}
+
+/// While the port holds the RA axis (east at the highest rate: the axis
+/// stands) nothing it does is gear correction, the feed-forward's share
+/// included: C holds, and the frames meanwhile are not learned. The
+/// feed-forward once counted as applied though the clamp took it away,
+/// and the guider's silent frames were learned as "no error".
+#[test]
+fn what_the_port_holds_is_neither_applied_nor_learned() {
+    let mut r = Rig::new();
+    r.run_until(S);
+    // A guide pulse: the guider is heard, frames are filled from now on.
+    r.ask(":Mgw0200#");
+    r.run_until(S / 2 * 3);
+    let ff = FeedForward {
+        rate_arcsec_per_s: 1.0,
+        from_gear_s: 0.0,
+        until_gear_s: 1e9,
+        pulse_share: PulseShare::FULL,
+    };
+    r.advance_to(S / 2 * 3 + 1);
+    let w =
+        r.lp.wake(r.t, r.steps().ra, &mut Edges(Vec::new()), Some(ff));
+    if let Some(rates) = w.rates {
+        r.rates = rates;
+    }
+    r.run_until(2 * S);
+    assert!(r.lp.guiding().feed_forward_now() > 0.9);
+    let c = r.lp.guiding().applied_arcsec();
+    let frames = r.frames.len();
+    r.ask(":RS#:Me#");
+    r.run_until(12 * S);
+    assert_eq!(r.rates.ra_steps_per_s, 0.0);
+    let step = f64::from(r.mount.arcsec_per_ra_step());
+    let held = r.lp.guiding().applied_arcsec() - c;
+    assert!(held.abs() < step, "C moved by {held} arcsec");
+    let during = &r.frames[frames..];
+    assert!(during.len() >= 4, "{}", during.len());
+    assert!(
+        during.iter().all(|f| f.kind == FrameKind::Unmeasured),
+        "{during:?}"
+    );
 }
 
 /// The first source on an axis keeps it; the other is refused, counted,

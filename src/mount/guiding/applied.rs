@@ -19,6 +19,10 @@ pub(super) struct Mark {
     pub c: f64,
     /// Integral of C over wall time since the origin, arcsec s.
     pub integral: f64,
+    /// Wall time the command port has moved the RA axis or stopped its
+    /// tracking, since the origin, microseconds: a frame whose interval
+    /// holds some measured nothing of the gear.
+    pub port_us: u64,
 }
 
 /// C and its integral, updated at every `Guiding::rates` call.
@@ -40,6 +44,10 @@ pub(super) struct Applied {
     /// correction (manual motion, tracking off), steps/s: the model must
     /// not learn it, so it is taken out of C as it is made.
     excluded_sps: f32,
+    /// The command port moves the RA axis or has stopped its tracking
+    /// (since the last update), and for how long in all ([`Mark::port_us`]).
+    port_motion: bool,
+    port_us: u64,
 }
 
 impl Applied {
@@ -55,6 +63,8 @@ impl Applied {
             last_ra_sps: 0.0,
             dither_offset: 0.0,
             excluded_sps: 0.0,
+            port_motion: false,
+            port_us: 0,
         }
     }
 
@@ -98,6 +108,7 @@ impl Applied {
                 gear_s: 0.0,
                 c: 0.0,
                 integral: 0.0,
+                port_us: 0,
             };
         }
         let dt = secs_between(at_us, self.last_us);
@@ -108,6 +119,14 @@ impl Applied {
             gear_s: (self.last_steps as f64 + self.last_ra_sps as f64 * dt) / self.sidereal_sps,
             c,
             integral: self.integral + 0.5 * (self.last_c + c) * dt,
+            port_us: self.port_us_at(at_us),
+        }
+    }
+
+    fn port_us_at(&self, at_us: u64) -> u64 {
+        match self.port_motion {
+            true => self.port_us + at_us.saturating_sub(self.last_us),
+            false => self.port_us,
         }
     }
 
@@ -137,14 +156,17 @@ impl Applied {
         let c = not_tracking * self.arcsec_per_step - self.dither_offset;
         self.integral += 0.5 * (self.last_c + c) * dt;
         self.last_c = c;
+        self.port_us = self.port_us_at(now_us);
         self.last_us = now_us;
         self.last_steps = ra_steps;
     }
 
-    /// The RA rate set from now on, steps/s, and the part of it that is
-    /// no gear correction.
-    pub fn set_ra_rate(&mut self, sps: f32, excluded_sps: f32) {
+    /// The RA rate set from now on, steps/s, the part of it that is no
+    /// gear correction, and whether the command port moves the axis (or
+    /// has stopped its tracking).
+    pub fn set_ra_rate(&mut self, sps: f32, excluded_sps: f32, port_motion: bool) {
         self.last_ra_sps = sps;
         self.excluded_sps = excluded_sps;
+        self.port_motion = port_motion;
     }
 }

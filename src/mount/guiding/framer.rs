@@ -311,6 +311,15 @@ impl Framer {
             None => (mark.c, 0.0),
         };
         let applied = applied as f32;
+        // The port moved the axis (or stopped its tracking) meanwhile:
+        // nothing of the gear was measured.
+        let port_moved = self
+            .last_frame
+            .is_some_and(|prev| mark.port_us != prev.port_us);
+        let kind = match kind {
+            FrameKind::Measured if port_moved => FrameKind::Unmeasured,
+            kind => kind,
+        };
         let gear_error = match kind {
             FrameKind::Measured if self.aggressiveness > 0.0 => {
                 applied + pulse_arcsec / self.aggressiveness

@@ -169,9 +169,11 @@ pub struct GuidingCounters {
 }
 
 /// The motion the command port asks for besides guide pulses: tracking on
-/// or off, and a manual rate per axis. None of it is gear correction: the
-/// RA part is taken out of C as it is made (like a dither's move), so the
-/// model never learns from it.
+/// or off, and a manual rate per axis. None of it is gear correction: while
+/// the port moves the RA axis or has stopped its tracking, C holds (the RA
+/// rate's whole departure from sidereal is taken out as it is made, like a
+/// dither's move) and the frames are unmeasured, so the model never learns
+/// from it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Motion {
     pub tracking: bool,
@@ -476,18 +478,20 @@ impl Guiding {
                 clamp(sidereal_sps as f32, 0.0, self.max_ra_sps)
             }
         };
-        let learned = clamp_ra(ra);
         let m = self.motion;
-        let (ra, ra_clamped, excluded) = if m.tracking && m.manual_ra_sps == 0.0 {
-            (ra, learned, 0.0)
+        let port_motion = !(m.tracking && m.manual_ra_sps == 0.0);
+        let (ra, ra_clamped, excluded) = if !port_motion {
+            (ra, clamp_ra(ra), 0.0)
         } else {
-            // The rate set minus the rate tracking and guiding alone would
-            // have set: what the port added or took away.
+            // While the port moves the axis or has stopped its tracking,
+            // none of its motion is gear correction, the guide pulses' and
+            // the feed-forward's included (the clamp may take them away):
+            // C holds, and the frames meanwhile are not learned.
             let tracking = if m.tracking { sidereal_sps } else { 0.0 };
             let with_port =
                 (tracking + guide as f64 + ff_sps + finite_or_zero(m.manual_ra_sps) as f64) as f32;
             let set = clamp_ra(with_port);
-            (with_port, set, set - learned)
+            (with_port, set, set - sidereal_sps as f32)
         };
         if ra_clamped != ra {
             self.counters.ra_clamped = self.counters.ra_clamped.saturating_add(1);
@@ -505,7 +509,7 @@ impl Guiding {
         if dec_clamped != dec {
             self.counters.dec_clamped = self.counters.dec_clamped.saturating_add(1);
         }
-        self.applied.set_ra_rate(ra_clamped, excluded);
+        self.applied.set_ra_rate(ra_clamped, excluded, port_motion);
         Rates {
             ra_steps_per_s: ra_clamped,
             dec_steps_per_s: dec_clamped,
