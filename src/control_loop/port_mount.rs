@@ -140,6 +140,7 @@ impl LearnedFrame {
                 FrameKind::Measured if self.filled => b'f',
                 FrameKind::Measured => b'm',
                 FrameKind::Unmeasured => b'u',
+                FrameKind::Moved => b's',
                 FrameKind::Dither { .. } => b'd',
             },
             observation_mas: mas(self.observation_arcsec.into()),

@@ -299,7 +299,7 @@ fn what_the_port_holds_is_neither_applied_nor_learned() {
     let during = &r.frames[frames..];
     assert!(during.len() >= 4, "{}", during.len());
     assert!(
-        during.iter().all(|f| f.kind == FrameKind::Unmeasured),
+        during.iter().all(|f| f.kind == FrameKind::Moved),
         "{during:?}"
     );
 }

@@ -79,6 +79,7 @@ pub fn frame(learner: &Learner<STAGES>, msg: &FrameRecord, ff: &FeedForward) {
         FrameKind::Measured if f.filled => "filled",
         FrameKind::Measured => "measured",
         FrameKind::Unmeasured => "unmeasured",
+        FrameKind::Moved => "moved by the port",
         FrameKind::Dither { .. } => "dither",
     };
     defmt::info!(

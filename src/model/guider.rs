@@ -270,28 +270,35 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     /// Forget the data (not the learned periods, nor the fault counters).
     pub fn reset(&mut self) {
         self.grid.clear();
-        self.peaks_stale = true;
-        self.gp.clear();
         self.worm_peak_s = None;
         self.discovery.clear();
         self.gates[1..].fill(0.0);
+        self.learning_progress = 0.0;
+        self.trust = Trust::new();
+        for t in &mut self.trackers {
+            t.disagreement = 1.0;
+        }
+        self.restart_frames();
+        self.resume = None;
+        self.phase_search = None;
+        self.spectrum_hold = None;
+    }
+
+    /// The per-frame state as before a first frame: the clock starts again
+    /// with the next frame. The data, the periods and the trust stay.
+    fn restart_frames(&mut self) {
+        self.peaks_stale = true;
+        self.gp.clear();
         self.frames = 0;
         self.warm_up_frames = WARM_UP_FRAMES;
+        self.held_time = None;
         self.sum_control = 0.0;
         self.recent_controls = [S::ZERO; 2];
         self.last_prediction_end = None;
         self.prediction = S::ZERO;
         self.dither_offset = 0.0;
         self.dither_frames_left = 0;
-        self.learning_progress = 0.0;
         self.blend = 0.0;
-        self.trust = Trust::new();
-        for t in &mut self.trackers {
-            t.disagreement = 1.0;
-        }
-        self.resume = None;
-        self.phase_search = None;
-        self.spectrum_hold = None;
     }
 
     pub fn config(&self) -> &GuiderConfig<S> {

@@ -257,6 +257,20 @@ impl<const N: usize> Learner<N> {
         self.guider.blend_weight() >= TRUSTED_BLEND
     }
 
+    /// A frame of the port's slew at gear time `t`: nothing to learn, and
+    /// no feed-forward (the slew is no gear correction). The model keeps
+    /// what it learned and places it before the next frame
+    /// (`Guider::jumped`).
+    fn moved(&mut self, t: f64) -> FeedForward {
+        self.guider.jumped();
+        self.bump.interrupt();
+        if t.is_finite() {
+            self.last_gear_s = Some(t);
+        }
+        self.count(false);
+        FeedForward::NONE
+    }
+
     /// Settle for a dither's frames without learning. Amount 0: gear time
     /// comes from the steps, which already include a dither's
     /// (`crate::mount::guiding`).
@@ -267,6 +281,9 @@ impl<const N: usize> Learner<N> {
 
     /// Learn one frame and return the feed-forward for the time to the next.
     pub fn learn(&mut self, frame: Frame) -> FeedForward {
+        if frame.kind == FrameKind::Moved {
+            return self.moved(frame.gear_time_s);
+        }
         let t = frame.gear_time_s;
         let d = match self.last_gear_s {
             Some(prev) if t >= prev => t - prev,

@@ -117,8 +117,8 @@ pub fn parse(line: &str) -> Result<Telemetry, ParseError> {
             }
             "kind" => {
                 t.kind = match v {
-                    "m" | "f" | "u" | "d" => v.as_bytes()[0],
-                    _ => return Err(ParseError(format!("kind: m, f, u or d expected: {v:?}"))),
+                    "m" | "f" | "u" | "d" | "s" => v.as_bytes()[0],
+                    _ => return Err(ParseError(format!("kind: m, f, u, d or s expected: {v:?}"))),
                 };
                 2
             }

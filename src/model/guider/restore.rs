@@ -176,7 +176,6 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         }
         bounds::check(&self.config, snapshot)?;
         self.reset();
-        self.held_time = None;
         for (s, ((tracker, gate), saved)) in self
             .trackers
             .iter_mut()
@@ -208,6 +207,46 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             self.spectrum_hold = Some(SpectrumHold { gap_s: 0.0 });
         }
         Ok(())
+    }
+
+    /// The clock is about to jump ahead with nothing measured in between
+    /// (the port slews the axis: the gears turn, no frame is taken). What
+    /// was learned is kept and placed before the next frame as a restore
+    /// at a known phase places a snapshot: where the clock puts it if that
+    /// is within [`PLACEMENT_PERIODS`] worm periods, else as near as every
+    /// stage's phase allows, the gap left dark; its level then meets the
+    /// first measured frame. Pushed across the jump instead, the cells
+    /// would be filled by interpolating the last frame to the next (as
+    /// measured data), or, frame by frame through a long slew, push the
+    /// learned data out of the ring. Does nothing while a placement is
+    /// pending or before anything was learned.
+    pub fn jumped(&mut self) {
+        let len = self.grid.len();
+        if self.resume.is_some() || self.frames == 0 || len == 0 {
+            return;
+        }
+        // As a snapshot would save them (the time of the first cell's
+        // start on the clock) and restore them, through the scratch
+        // buffer (twice the grid's cells: gear errors, then variances).
+        let zero = self.clock_at_grid_time(self.grid.cell_time(0) + 0.5 * CELL_S);
+        let (gears, variances) = self.scratch.split_at_mut(GRID_CELLS);
+        for (i, (g, v)) in gears
+            .iter_mut()
+            .zip(variances.iter_mut())
+            .enumerate()
+            .take(len)
+        {
+            (*g, *v) = self.grid.cell(i);
+        }
+        let (gears, variances) = self.scratch.split_at(GRID_CELLS);
+        let cells = gears.iter().zip(variances).take(len).map(|(&g, &v)| (g, v));
+        self.grid.restore(cells, DARK_VARIANCE);
+        self.restart_frames();
+        self.resume = Some(Resume {
+            grid_zero_s: zero,
+            place: Place::AllStages,
+        });
+        self.spectrum_hold = Some(SpectrumHold { gap_s: 0.0 });
     }
 
     /// The caller's clock at a time of the grid.
@@ -759,6 +798,42 @@ mod tests {
             u < 0.55 * c && far_u < 0.55 * far_c,
             "{u} {c} {far_u} {far_c}"
         );
+    }
+
+    /// A slew (the clock jumps, nothing measured): the model keeps what it
+    /// learned and predicts at once, for a slew within the grid's window
+    /// and for a meridian flip's half turn, with no fault counted. Without
+    /// `jumped` the first frame after either was refused (`bad_time`) and
+    /// the flip's started learning again (`grid_restarts`).
+    #[test]
+    fn after_a_jump_the_model_keeps_what_it_learned() {
+        let g = learned();
+        let cold = {
+            let mut c = std::boxed::Box::new(Guider::<f32, 2>::new(*g.config()));
+            run(&mut c, 0.0, 0.0, 0.0, 900.0, 0.0)
+        };
+        for jump in [2_700.0, 43_200.0] {
+            let mut bytes = [0u8; SNAPSHOT_MAX];
+            let n = g.snapshot(&mut bytes).unwrap();
+            let mut j = std::boxed::Box::new(Guider::<f32, 2>::new(*g.config()));
+            let phase = Phase::Known {
+                gear_time_offset_s: 0.0,
+            };
+            j.restore(&Snapshot::parse(&bytes[..n], 2).unwrap(), phase)
+                .unwrap();
+            run(&mut j, 0.0, 0.0, 8000.0, 8600.0, 8000.0);
+            let stage = (j.period_s(1), j.gate(1));
+            j.jumped();
+            let (from, to) = (8600.0 + jump, 9500.0 + jump);
+            let after = run(&mut j, 0.0, 0.0, from, to, from);
+            let f = j.faults();
+            assert_eq!((f.bad_time, f.grid_restarts), (0, 0), "{jump}: {f:?}");
+            // The stage as it was (its period tracked on by the new data).
+            assert!((j.period_s(1) - stage.0).abs() < 1e-3 * stage.0, "{jump}");
+            assert_eq!(j.gate(1), stage.1, "{jump}");
+            std::println!("jump {jump}: {after} against {cold} cold");
+            assert!(after < 0.5 * cold, "jump {jump}: {after} vs {cold}");
+        }
     }
 
     /// Restored at a known phase, the model predicts from the first frame

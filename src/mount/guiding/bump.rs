@@ -121,6 +121,13 @@ impl Bump {
     pub fn level(&self) -> f64 {
         self.level
     }
+
+    /// The path means nothing across what came (the port slewed the
+    /// axis): steps are measured afresh, the level stays.
+    pub fn interrupt(&mut self) {
+        self.before = None;
+        self.measuring = None;
+    }
 }
 
 #[cfg(test)]

@@ -317,7 +317,7 @@ impl Framer {
             .last_frame
             .is_some_and(|prev| mark.port_us != prev.port_us);
         let kind = match kind {
-            FrameKind::Measured if port_moved => FrameKind::Unmeasured,
+            FrameKind::Measured | FrameKind::Unmeasured if port_moved => FrameKind::Moved,
             kind => kind,
         };
         let gear_error = match kind {
@@ -341,7 +341,7 @@ impl Framer {
         if filled {
             c.filled_frames = c.filled_frames.saturating_add(1);
         }
-        if kind == FrameKind::Unmeasured {
+        if matches!(kind, FrameKind::Unmeasured | FrameKind::Moved) {
             c.unmeasured_frames = c.unmeasured_frames.saturating_add(1);
         }
         if self.queue.is_full() {

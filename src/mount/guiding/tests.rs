@@ -155,7 +155,7 @@ fn silence_fills_then_freezes_then_fades() {
     while let Some(f) = g.take_frame() {
         match f.kind {
             FrameKind::Measured => kinds[0] += 1,
-            FrameKind::Unmeasured => kinds[1] += 1,
+            FrameKind::Unmeasured | FrameKind::Moved => kinds[1] += 1,
             FrameKind::Dither { .. } => kinds[2] += 1,
         }
     }
