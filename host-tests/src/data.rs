@@ -16,17 +16,28 @@ pub fn cases_file() -> PathBuf {
     data_dir().join("synthetic_cases.csv")
 }
 
-/// The PHD2 guide logs of the data directory, sorted by name.
+/// The PHD2 guide logs of the data directory (`phd2-logs`: one guiding
+/// section each), sorted by name.
 pub fn phd2_logs() -> Result<Vec<PathBuf>, Error> {
-    let dir = data_dir().join("phd2-logs");
-    let entries = std::fs::read_dir(&dir).map_err(|e| Error::io(&dir, &e))?;
+    text_files(&data_dir().join("phd2-logs"))
+}
+
+/// The PHD2 guide logs of whole nights (`phd2-nights`: many sections),
+/// sorted by name.
+pub fn night_logs() -> Result<Vec<PathBuf>, Error> {
+    text_files(&data_dir().join("phd2-nights"))
+}
+
+/// The `*.txt` files of `dir`, sorted by name; none is an error.
+fn text_files(dir: &Path) -> Result<Vec<PathBuf>, Error> {
+    let entries = std::fs::read_dir(dir).map_err(|e| Error::io(dir, &e))?;
     let mut logs: Vec<PathBuf> = entries
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|x| x == "txt"))
         .collect();
     logs.sort();
     if logs.is_empty() {
-        return Err(Error::new(&dir, None, "no *.txt guide logs here"));
+        return Err(Error::new(dir, None, "no *.txt guide logs here"));
     }
     Ok(logs)
 }

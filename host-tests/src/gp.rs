@@ -1,8 +1,12 @@
 //! The library's Gaussian-process guider as a [`GuideAlgorithm`].
 
-use crate::guide_algorithm::GuideAlgorithm;
+mod carry;
+
+use crate::guide_algorithm::{GuideAlgorithm, Restart};
 use mkgp_mount::model::guider::{Guider, GuiderConfig};
 use mkgp_mount::model::numeric::scalar::Scalar;
+
+pub use carry::Carry;
 
 /// `mkgp_mount::model::guider::Guider<S, N>`: N = 1 is PPEC, N = 2 the
 /// multi-kernel model; `S` is `f64` (the host reference, the default) or
@@ -11,6 +15,7 @@ use mkgp_mount::model::numeric::scalar::Scalar;
 /// the way out. Boxed: the guider is about 100 KiB.
 pub struct GpAlgorithm<const N: usize, S: Scalar = f64> {
     guider: Box<Guider<S, N>>,
+    carry: carry::Carrier,
 }
 
 impl<const N: usize, S: Scalar> GpAlgorithm<N, S> {
@@ -25,7 +30,14 @@ impl<const N: usize, S: Scalar> GpAlgorithm<N, S> {
         }
         GpAlgorithm {
             guider: Box::new(Guider::new(config)),
+            carry: carry::Carrier::new(Carry::default()),
         }
+    }
+
+    /// What the model keeps when guiding starts again ([`Carry`]).
+    pub fn with_carry(mut self, carry: Carry) -> Self {
+        self.carry = carry::Carrier::new(carry);
+        self
     }
 
     pub fn guider(&self) -> &Guider<S, N> {
@@ -35,8 +47,22 @@ impl<const N: usize, S: Scalar> GpAlgorithm<N, S> {
 
 impl<const N: usize, S: Scalar> GuideAlgorithm for GpAlgorithm<N, S> {
     fn step(&mut self, t: f64, measured: f64, snr: f64, dt: f64) -> f64 {
+        self.carry.saw(t);
         self.guider
             .frame(t, S::from_f64(measured), S::from_f64(snr), S::from_f64(dt))
             .to_f64()
+    }
+
+    fn dither(&mut self, amount: f64, rate: f64) {
+        self.guider.dithered(S::from_f64(amount), S::from_f64(rate));
+    }
+
+    fn dark(&mut self, t: f64, dt: f64) -> f64 {
+        self.carry.saw(t);
+        self.guider.dark_frame(t, S::from_f64(dt)).to_f64()
+    }
+
+    fn restart(&mut self, restart: &Restart) {
+        self.carry.restart(&mut self.guider, restart);
     }
 }

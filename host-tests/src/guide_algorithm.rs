@@ -8,16 +8,52 @@ pub trait GuideAlgorithm {
     /// amount of error to remove (the simulator does U += control).
     fn step(&mut self, t: f64, measured: f64, snr: f64, dt: f64) -> f64;
 
-    /// The guider was dithered by `amount` px. Default: ignored.
-    fn dither(&mut self, _amount: f64) {}
+    /// The guider was dithered by `amount` px at `rate` px per second of
+    /// gear time. Default: ignored.
+    fn dither(&mut self, _amount: f64, _rate: f64) {}
+
+    /// A frame without a star at `t` (the star lost), `dt` to the next;
+    /// returns the control. Default: none.
+    fn dark(&mut self, _t: f64, _dt: f64) -> f64 {
+        0.0
+    }
+
+    /// Guiding starts again after a pause: a new section of a night.
+    /// Default: nothing changes.
+    fn restart(&mut self, _restart: &Restart) {}
+}
+
+/// What is known when guiding starts again.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Restart {
+    /// Seconds since the last frame.
+    pub gap_s: f64,
+    /// The time step of the new section's frames, s.
+    pub step_s: f64,
+    /// How far gear time moved beyond the clock meanwhile, seconds (a slew
+    /// to another target moves it by minus the change of right ascension;
+    /// 0 on the same target), if the pointing says.
+    pub gear_shift_s: Option<f64>,
+    /// The telescope changed sides of the pier (a meridian flip): the RA
+    /// axis turned half a turn.
+    pub pier_flip: bool,
+    /// The new pixel scale over the last (1 when unknown): the same error
+    /// measures that many times fewer px.
+    pub scale_ratio: f64,
 }
 
 impl<C: GuideAlgorithm + ?Sized> GuideAlgorithm for Box<C> {
     fn step(&mut self, t: f64, measured: f64, snr: f64, dt: f64) -> f64 {
         (**self).step(t, measured, snr, dt)
     }
-    fn dither(&mut self, amount: f64) {
-        (**self).dither(amount)
+    fn dither(&mut self, amount: f64, rate: f64) {
+        (**self).dither(amount, rate)
+    }
+    fn dark(&mut self, t: f64, dt: f64) -> f64 {
+        (**self).dark(t, dt)
+    }
+    fn restart(&mut self, restart: &Restart) {
+        (**self).restart(restart)
     }
 }
 
@@ -64,6 +100,11 @@ impl GuideAlgorithm for Hysteresis {
         };
         self.previous = control;
         control
+    }
+
+    /// The previous control was for the last section's star.
+    fn restart(&mut self, _restart: &Restart) {
+        self.previous = 0.0;
     }
 }
 

@@ -2,7 +2,7 @@
 //! run: the library's Gaussian-process guider ([`crate::gp::GpAlgorithm`])
 //! with 1 periodic stage (PPEC), 2 (MKGP) or 3 (MKGP3).
 
-use crate::gp::GpAlgorithm;
+use crate::gp::{Carry, GpAlgorithm};
 use crate::guide_algorithm::GuideAlgorithm;
 
 /// A Gaussian-process model for the simulators.
@@ -33,9 +33,20 @@ pub fn algorithm(
     control_gain: Option<f64>,
     prediction_gain: Option<f64>,
 ) -> Box<dyn GuideAlgorithm> {
+    carrying(model, control_gain, prediction_gain, Carry::default())
+}
+
+/// [`algorithm`], carried across a pause in guiding as `carry` says.
+pub fn carrying(
+    model: Model,
+    control_gain: Option<f64>,
+    prediction_gain: Option<f64>,
+    carry: Carry,
+) -> Box<dyn GuideAlgorithm> {
+    let (c, p) = (control_gain, prediction_gain);
     match model {
-        Model::Ppec => Box::new(GpAlgorithm::<1>::new(control_gain, prediction_gain)),
-        Model::Mkgp => Box::new(GpAlgorithm::<2>::new(control_gain, prediction_gain)),
-        Model::Mkgp3 => Box::new(GpAlgorithm::<3>::new(control_gain, prediction_gain)),
+        Model::Ppec => Box::new(GpAlgorithm::<1>::new(c, p).with_carry(carry)),
+        Model::Mkgp => Box::new(GpAlgorithm::<2>::new(c, p).with_carry(carry)),
+        Model::Mkgp3 => Box::new(GpAlgorithm::<3>::new(c, p).with_carry(carry)),
     }
 }

@@ -1,64 +1,141 @@
-//! PHD2 guide logs (`PHD2_GuideLog_*.txt`, `performance_dataset0N.txt`).
+//! PHD2 guide logs (`PHD2_GuideLog_*.txt`, `performance_dataset0N.txt`),
+//! read as PHD2 writes them: a night of guiding sections.
 //!
-//! A log has header lines (`Exposure = 2000 ms`, ...), then per guiding
-//! section a CSV header `Frame,Time,mount,dx,dy,RARawDistance,...` and one
-//! row per frame. A frame counts when its first field is a frame number and
-//! it has an RARawDistance (dropped frames, `"DROP"` rows, have none). The
-//! columns used are found by name in the section's header: Time (col 1),
-//! RARawDistance (col 5), RAGuideDistance (col 7), SNR (col 16) in the
-//! logs at hand. `INFO: DITHER by X, Y, ...` lines are kept with the index of
-//! the frame that follows them.
+//! A section runs from `Guiding Begins at DATE TIME` to `Guiding Ends at`
+//! (or to the next section, or the end of the file: PHD2 leaves a section
+//! open when it stops abruptly). Its header lines give the exposure, the
+//! pixel scale, the mount's guide rate and where it pointed ([`header`]);
+//! then a CSV header `Frame,Time,mount,dx,dy,RARawDistance,...` names the
+//! columns of its rows, one per frame ([`row`]), `Time` counting from the
+//! section's begin. A frame counts when its first field is a frame number
+//! and it has an RARawDistance; a `"DROP"` row (the star lost) is a frame
+//! without a star, kept as an [`EventKind::Drop`]. `INFO: DITHER by X, Y`,
+//! `INFO: SET LOCK POSITION` and `INFO: SETTLING STATE CHANGE` lines are
+//! kept as events with the index of the frame that follows them.
+//! Calibrations (`Calibration Begins at` to `Calibration complete`) are
+//! skipped: their pulses are no guiding. A hand-made log may leave out the
+//! `Guiding Begins` line: a `Frame,Time,...` header then starts a section,
+//! with the header lines before it.
+//!
+//! Sections are placed on the night's clock by their `Guiding Begins at`
+//! ([`Section::start_s`]), never earlier than the previous one ended.
 //!
 //! Values a guide log cannot hold are errors (see [`limits`]): distances and
 //! dithers beyond any camera frame, exposures beyond minutes, times beyond a
 //! week or running back within a section, a correction far beyond the error
-//! it corrects. A row whose star PHD2 could not have found, beyond its
-//! search region from the last star found, is a frame the guider lost: it is
-//! dropped as PHD2's own DROP rows are (see [`search_region`]). A section
-//! runs from one `Frame,Time,...` header to the next.
+//! it corrects, header values no mount gives. A row whose star PHD2 could
+//! not have found, beyond its search region from the last star found, is a
+//! frame the guider lost: it is dropped as PHD2's own DROP rows are (see
+//! [`search_region`]).
 //!
 //! Errors name the file and line: `file:line: message`.
 
+pub mod date_time;
+pub mod header;
 pub mod limits;
+pub mod row;
 pub mod search_region;
 
-use crate::data::{parse_f64, read_text, Error};
+use crate::data::{read_text, Error};
+use header::Header;
 use limits::Clock;
+use row::{Columns, Star};
 use search_region::StarTrack;
 use std::path::{Path, PathBuf};
 
-/// One guide frame.
+/// One guide frame with a star.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Frame {
     /// 1-based line in the log.
     pub line: usize,
     pub frame: u64,
+    /// `Time`: seconds since the section began.
     pub time_s: f64,
     /// RARawDistance: the measured RA error (px).
     pub ra_raw: f64,
-    /// RAGuideDistance: the RA correction PHD2 applied (px).
+    /// RAGuideDistance: the RA correction the guide algorithm asked for
+    /// (px).
     pub ra_guide: f64,
+    /// The RA correction the mount carried out (px; [`row::applied`]).
+    pub ra_applied: f64,
     pub snr: f64,
 }
 
-/// An `INFO: DITHER by X, Y, ...` line.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Dither {
+/// What happened between two frames.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum EventKind {
+    /// `INFO: DITHER by X, Y, ...`: the lock moved by (X, Y) px; X is the
+    /// replay's dither amount.
+    Dither { x: f64, y: f64 },
+    /// A frame without a star at `time_s` (a DROP row, or a star beyond
+    /// PHD2's search region).
+    Drop { time_s: f64 },
+    /// `INFO: SET LOCK POSITION`.
+    LockSet,
+    /// `INFO: SETTLING STATE CHANGE, Settling started`.
+    SettlingStarted,
+    /// `... Settling complete` or `... Settling failed`.
+    SettlingEnded,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Event {
     pub line: usize,
-    /// Index in [`GuideLog::frames`] of the first frame after the dither.
+    /// Index in [`Section::frames`] of the first frame after the event.
     pub next_frame: usize,
-    /// The first amount as printed (px); the replay's dither amount.
-    pub x: f64,
-    pub y: f64,
+    pub kind: EventKind,
+}
+
+/// One guiding section.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Section {
+    /// The line of its `Guiding Begins at` (of its `Frame,Time,...` header
+    /// without one).
+    pub line: usize,
+    /// The line of its `Frame,Time,...` header.
+    pub rows_line: usize,
+    /// Where its `Time` 0 is on the night's clock: seconds since the first
+    /// section began.
+    pub start_s: f64,
+    /// `Exposure = N ms` of the section (of the one before, if it gives
+    /// none), in seconds.
+    pub exposure_s: f64,
+    pub header: Header,
+    pub frames: Vec<Frame>,
+    pub events: Vec<Event>,
+}
+
+impl Section {
+    /// The `INFO: DITHER` events: (index of the next frame, X, Y).
+    pub fn dithers(&self) -> impl Iterator<Item = (usize, f64, f64)> + '_ {
+        self.events.iter().filter_map(|e| match e.kind {
+            EventKind::Dither { x, y } => Some((e.next_frame, x, y)),
+            _ => None,
+        })
+    }
+
+    /// The frames without a star: (index of the next frame, their time).
+    pub fn drops(&self) -> impl Iterator<Item = (usize, f64)> + '_ {
+        self.events.iter().filter_map(|e| match e.kind {
+            EventKind::Drop { time_s } => Some((e.next_frame, time_s)),
+            _ => None,
+        })
+    }
+
+    /// Where the section ends on the night's clock: its last frame (with a
+    /// star or not).
+    pub fn end_s(&self) -> f64 {
+        let last_frame = self.frames.last().map_or(0.0, |f| f.time_s);
+        let last_drop = self.drops().map(|(_, t)| t).fold(0.0, f64::max);
+        self.start_s + last_frame.max(last_drop)
+    }
 }
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct GuideLog {
     pub path: PathBuf,
-    /// `Exposure = N ms` of the first section, in seconds.
-    pub exposure_s: f64,
-    pub frames: Vec<Frame>,
-    pub dithers: Vec<Dither>,
+    /// The guiding sections that have frames, in the order of the log.
+    pub sections: Vec<Section>,
 }
 
 impl GuideLog {
@@ -69,62 +146,16 @@ impl GuideLog {
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| self.path.display().to_string())
     }
+
+    /// Frames with a star, in all sections.
+    pub fn frame_count(&self) -> usize {
+        self.sections.iter().map(|s| s.frames.len()).sum()
+    }
 }
 
 /// Load and parse a log.
 pub fn load(path: &Path) -> Result<GuideLog, Error> {
     parse(&read_text(path)?, path)
-}
-
-/// Column indices of the fields we use, from a section's CSV header.
-#[derive(Debug, Clone, Copy)]
-struct Columns {
-    time: usize,
-    ra_raw: usize,
-    ra_guide: usize,
-    snr: usize,
-}
-
-const REQUIRED: [&str; 4] = ["Time", "RARawDistance", "RAGuideDistance", "SNR"];
-
-impl Columns {
-    fn from_header(fields: &[String]) -> Result<Columns, String> {
-        let find = |name: &str| fields.iter().position(|f| f == name);
-        let missing: Vec<&str> = REQUIRED
-            .iter()
-            .copied()
-            .filter(|n| find(n).is_none())
-            .collect();
-        if !missing.is_empty() {
-            return Err(format!(
-                "guide-frame header lacks column(s) {}",
-                missing.join(", ")
-            ));
-        }
-        Ok(Columns {
-            time: find("Time").unwrap(),
-            ra_raw: find("RARawDistance").unwrap(),
-            ra_guide: find("RAGuideDistance").unwrap(),
-            snr: find("SNR").unwrap(),
-        })
-    }
-}
-
-/// Split a CSV line, honouring double quotes (PHD2 quotes the mount name and
-/// error messages).
-fn split_csv(line: &str) -> Vec<String> {
-    let mut out = Vec::new();
-    let mut field = String::new();
-    let mut quoted = false;
-    for ch in line.chars() {
-        match ch {
-            '"' => quoted = !quoted,
-            ',' if !quoted => out.push(std::mem::take(&mut field)),
-            _ => field.push(ch),
-        }
-    }
-    out.push(field);
-    out
 }
 
 /// Parse the `X, Y` of `INFO: DITHER by X, Y, new lock pos = ...`.
@@ -135,259 +166,262 @@ fn parse_dither(rest: &str) -> Result<(f64, f64), String> {
     Ok((x, y))
 }
 
-/// What one guiding section's rows are read with and checked against.
-struct Section {
-    /// The line of its `Frame,Time,...` header.
-    header_line: usize,
+/// Whether `line` is a guide-frame row: its first field a frame number.
+fn is_row(line: &str) -> bool {
+    line.split(',')
+        .next()
+        .is_some_and(|f| !f.is_empty() && f.bytes().all(|b| b.is_ascii_digit()))
+}
+
+/// The rows of the section being read, and what they are checked against.
+struct Rows {
     columns: Columns,
     clock: Clock,
     star: StarTrack,
+    section: Section,
 }
 
-impl Section {
-    fn new(header_line: usize, columns: Columns) -> Self {
-        Section {
-            header_line,
-            columns,
-            clock: Clock::default(),
-            star: StarTrack::default(),
-        }
+impl Rows {
+    /// Row `fields` (frame `frame`, at `line`): a frame, or a frame without
+    /// a star (no RARawDistance, or one PHD2 would have lost).
+    fn row(&mut self, fields: &[String], line: usize, frame: u64) -> Result<(), String> {
+        let row = self.columns.row(fields)?;
+        self.clock.tick(row.time_s, line)?;
+        let next_frame = self.section.frames.len();
+        let found = row.star.filter(|s| self.star.found(s.ra_raw));
+        let Some(star) = found else {
+            self.push(line, EventKind::Drop { time_s: row.time_s });
+            return Ok(());
+        };
+        // The dithers since the last frame: the correction may include them.
+        let dithered: f64 = self
+            .section
+            .dithers()
+            .filter(|&(at, _, _)| at == next_frame)
+            .map(|(_, x, _)| x)
+            .sum();
+        limits::correction(star.ra_raw, star.ra_guide + dithered)?;
+        self.section
+            .frames
+            .push(self.frame(line, frame, row.time_s, &star));
+        Ok(())
     }
 
-    /// The frame of row `fields` (number `frame`, at `line`), or `None` for
-    /// a frame the guider dropped (no RARawDistance) or would have lost.
-    /// `dithered`: the dither amounts since the last frame, px.
-    fn frame(
-        &mut self,
-        fields: &[String],
-        line: usize,
-        frame: u64,
-        dithered: f64,
-    ) -> Result<Option<Frame>, String> {
-        let c = self.columns;
-        let num = |idx: usize, name: &str, read: fn(&str, &str) -> Result<f64, String>| {
-            let field = fields
-                .get(idx)
-                .ok_or_else(|| format!("row has {} fields, no {name} column", fields.len()))?;
-            read(field, name)
-        };
-        let time_s = num(c.time, "Time", limits::time)?;
-        self.clock.tick(time_s, line)?;
-        if fields.get(c.ra_raw).is_none_or(|f| f.trim().is_empty()) {
-            return Ok(None);
-        }
-        let f = Frame {
+    fn frame(&self, line: usize, frame: u64, time_s: f64, star: &Star) -> Frame {
+        Frame {
             line,
             frame,
             time_s,
-            ra_raw: num(c.ra_raw, "RARawDistance", limits::distance)?,
-            ra_guide: num(c.ra_guide, "RAGuideDistance", limits::distance)?,
-            snr: num(c.snr, "SNR", parse_f64)?,
-        };
-        if !self.star.found(f.ra_raw) {
-            return Ok(None);
+            ra_raw: star.ra_raw,
+            ra_guide: star.ra_guide,
+            ra_applied: row::applied(star, self.section.header.x_rate),
+            snr: star.snr,
         }
-        limits::correction(f.ra_raw, f.ra_guide + dithered)?;
-        Ok(Some(f))
+    }
+
+    fn push(&mut self, line: usize, kind: EventKind) {
+        self.section.events.push(Event {
+            line,
+            next_frame: self.section.frames.len(),
+            kind,
+        });
+    }
+
+    /// An `INFO:` line within the rows.
+    fn info(&mut self, line: usize, text: &str) -> Result<(), String> {
+        if let Some(rest) = text.strip_prefix("INFO: DITHER by") {
+            let (x, y) = parse_dither(rest)?;
+            self.star.dithered(x, y);
+            self.push(line, EventKind::Dither { x, y });
+        } else if text.starts_with("INFO: SET LOCK POSITION") {
+            self.star.lock_set();
+            self.push(line, EventKind::LockSet);
+        } else if let Some(rest) = text.strip_prefix("INFO: SETTLING STATE CHANGE,") {
+            let kind = if rest.contains("started") {
+                EventKind::SettlingStarted
+            } else {
+                EventKind::SettlingEnded
+            };
+            self.push(line, kind);
+        }
+        Ok(())
+    }
+}
+
+/// Where the reader is in the log.
+enum State {
+    /// Between sections (or before any).
+    Idle,
+    /// In a calibration: nothing of it is guiding.
+    Calibrating,
+    /// In a section's rows.
+    Rows(Box<Rows>),
+}
+
+struct Parser {
+    state: State,
+    /// The header lines read for the section to come.
+    header: Header,
+    /// The header of the last guiding section (what a section that leaves
+    /// lines out inherits).
+    last_header: Header,
+    /// The last `Guiding Begins at`: its line and time (s since 1970).
+    begins: Option<(usize, i64)>,
+    /// The night clock's origin: the first `Guiding Begins at`.
+    origin: Option<i64>,
+    sections: Vec<Section>,
+    /// The line of the last `Frame,Time,...` header.
+    last_rows_line: Option<usize>,
+}
+
+impl Parser {
+    fn new() -> Self {
+        Parser {
+            state: State::Idle,
+            header: Header::default(),
+            last_header: Header::default(),
+            begins: None,
+            origin: None,
+            sections: Vec::new(),
+            last_rows_line: None,
+        }
+    }
+
+    /// The section being read is complete; the next starts from its
+    /// equipment.
+    fn close(&mut self) {
+        if let State::Rows(rows) = std::mem::replace(&mut self.state, State::Idle) {
+            let mut section = rows.section;
+            self.last_header = section.header.clone();
+            self.header = self.last_header.inherit();
+            let n = section.frames.len();
+            section.events.retain(|e| e.next_frame < n);
+            if n > 0 {
+                self.sections.push(section);
+            }
+        }
+    }
+
+    fn line(&mut self, n: usize, line: &str) -> Result<(), String> {
+        if let Some(rest) = line.strip_prefix("Guiding Begins at") {
+            self.close();
+            self.header = self.last_header.inherit();
+            let at = date_time::seconds(rest).ok_or_else(|| {
+                format!(
+                    "Guiding Begins at: {:?} is not `YYYY-MM-DD HH:MM:SS`",
+                    rest.trim()
+                )
+            })?;
+            self.begins = Some((n, at));
+            self.origin.get_or_insert(at);
+        } else if line.starts_with("Guiding Ends at") {
+            self.close();
+            self.begins = None;
+        } else if line.starts_with("Calibration Begins at") {
+            self.close();
+            self.begins = None;
+            self.state = State::Calibrating;
+        } else if line.starts_with("Calibration complete") {
+            if let State::Calibrating = self.state {
+                self.state = State::Idle;
+            }
+        } else if let State::Calibrating = self.state {
+            // The calibration's own header, table and pulses.
+        } else if line.starts_with("Frame,") {
+            self.open(n, line)?;
+        } else if is_row(line) {
+            self.row(n, line)?;
+        } else if line.starts_with("INFO:") {
+            if let State::Rows(rows) = &mut self.state {
+                rows.info(n, line)?;
+            } else if let Some(rest) = line.strip_prefix("INFO: DITHER by") {
+                // Outside a section it moves nothing we replay, but a log
+                // that holds such a value is no guide log.
+                parse_dither(rest)?;
+            }
+        } else if let State::Rows(rows) = &mut self.state {
+            // Not where PHD2 writes them, but they describe this section.
+            let section = &mut rows.section;
+            section.header.read(line)?;
+            section.exposure_s = section.header.exposure_s.unwrap_or(section.exposure_s);
+        } else {
+            self.header.read(line)?;
+        }
+        Ok(())
+    }
+
+    /// A `Frame,Time,...` header at line `n`: the rows of a new section.
+    fn open(&mut self, n: usize, line: &str) -> Result<(), String> {
+        self.close();
+        let columns = Columns::from_header(&row::split_csv(line))?;
+        self.last_rows_line = Some(n);
+        let header = std::mem::take(&mut self.header);
+        let Some(exposure_s) = header.exposure_s else {
+            return Err("guiding section without an `Exposure = N ms` header line".into());
+        };
+        let previous_end = self.sections.last().map_or(0.0, Section::end_s);
+        let (line, start_s) = match (self.begins.take(), self.origin) {
+            (Some((at, begins)), Some(origin)) => {
+                (at, ((begins - origin) as f64).max(previous_end))
+            }
+            _ => (n, previous_end),
+        };
+        self.state = State::Rows(Box::new(Rows {
+            columns,
+            clock: Clock::default(),
+            star: StarTrack::default(),
+            section: Section {
+                line,
+                rows_line: n,
+                start_s,
+                exposure_s,
+                header,
+                frames: Vec::new(),
+                events: Vec::new(),
+            },
+        }));
+        Ok(())
+    }
+
+    fn row(&mut self, n: usize, line: &str) -> Result<(), String> {
+        let fields = row::split_csv(line);
+        let frame: u64 = fields[0]
+            .parse()
+            .map_err(|_| format!("frame number out of range: {:?}", fields[0]))?;
+        match &mut self.state {
+            State::Rows(rows) => rows.row(&fields, n, frame),
+            _ if self.last_rows_line.is_none() => {
+                Err("guide-frame row before any `Frame,Time,...` header".into())
+            }
+            _ => Err("guide-frame row outside a guiding section".into()),
+        }
     }
 }
 
 /// Parse a log; `path` names the file in errors.
 pub fn parse(text: &str, path: &Path) -> Result<GuideLog, Error> {
-    let err = |line: usize, msg: String| Error::new(path, Some(line), msg);
-    let mut exposure_s = None;
-    let mut section: Option<Section> = None;
-    let mut frames = Vec::new();
-    let mut dithers = Vec::new();
+    let mut parser = Parser::new();
     for (i, raw) in text.lines().enumerate() {
-        let n = i + 1;
-        let line = raw.trim();
-        if let Some(rest) = line.strip_prefix("Exposure =") {
-            let e = limits::exposure_s(rest).map_err(|m| err(n, m))?;
-            exposure_s.get_or_insert(e);
-        } else if line.starts_with("Frame,") {
-            let fields = split_csv(line);
-            let columns = Columns::from_header(&fields).map_err(|m| err(n, m))?;
-            section = Some(Section::new(n, columns));
-        } else if let Some(rest) = line.strip_prefix("INFO: DITHER by") {
-            let (x, y) = parse_dither(rest).map_err(|m| err(n, m))?;
-            if let Some(s) = &mut section {
-                s.star.dithered(x, y);
-            }
-            dithers.push(Dither {
-                line: n,
-                next_frame: frames.len(),
-                x,
-                y,
-            });
-        } else if line.starts_with("INFO: SET LOCK POSITION") {
-            if let Some(s) = &mut section {
-                s.star.lock_set();
-            }
-        } else if line
-            .split(',')
-            .next()
-            .is_some_and(|f| !f.is_empty() && f.bytes().all(|b| b.is_ascii_digit()))
-        {
-            let fields = split_csv(line);
-            let frame: u64 = fields[0]
-                .parse()
-                .map_err(|_| err(n, format!("frame number out of range: {:?}", fields[0])))?;
-            let Some(s) = &mut section else {
-                return Err(err(
-                    n,
-                    "guide-frame row before any `Frame,Time,...` header".into(),
-                ));
-            };
-            let dithered = dithers
-                .iter()
-                .rev()
-                .take_while(|d| d.next_frame == frames.len())
-                .map(|d| d.x)
-                .sum();
-            if let Some(f) = s
-                .frame(&fields, n, frame, dithered)
-                .map_err(|m| err(n, m))?
-            {
-                frames.push(f);
-            }
-        }
+        parser
+            .line(i + 1, raw.trim())
+            .map_err(|m| Error::new(path, Some(i + 1), m))?;
     }
-    if frames.is_empty() {
-        return Err(match section {
-            Some(s) => err(
-                s.header_line,
-                "no guide frames (rows with a frame number and RARawDistance)".into(),
+    parser.close();
+    if parser.sections.is_empty() {
+        return Err(match parser.last_rows_line {
+            Some(line) => Error::new(
+                path,
+                Some(line),
+                "no guide frames (rows with a frame number and RARawDistance)",
             ),
             None => Error::new(path, None, "no `Frame,Time,...` guide-frame header"),
         });
     }
-    let Some(exposure_s) = exposure_s else {
-        return Err(Error::new(path, None, "no `Exposure = N ms` header line"));
-    };
-    dithers.retain(|d| d.next_frame < frames.len());
     Ok(GuideLog {
         path: path.to_path_buf(),
-        exposure_s,
-        frames,
-        dithers,
+        sections: parser.sections,
     })
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    const HEAD: &str = "Guiding Begins at 2017-03-10 20:22:52\nExposure = 2000 ms\n\
-        Frame,Time,mount,dx,dy,RARawDistance,DECRawDistance,RAGuideDistance,DECGuideDistance,\
-        RADuration,RADirection,DECDuration,DECDirection,XStep,YStep,StarMass,SNR,ErrorCode\n";
-    const ROW1: &str =
-        "1,2.250,\"Mount\",0.856,-0.494,-0.899,-0.308,-0.540,0.000,227,E,0,,,,1762,23.05,0\n";
-    const ROW2: &str =
-        "2,4.109,\"Mount\",0.159,-0.340,-0.191,-0.300,-0.115,0.000,48,E,0,,,,1463,21.04,0\n";
-    const DROP: &str = "3,3.2,\"DROP\",,,,,,,,,,,,,1486,21.65,6,\"Star lost, mass changed\"\n";
-
-    fn p(text: &str) -> Result<GuideLog, Error> {
-        parse(text, Path::new("x.txt"))
-    }
-
-    #[test]
-    fn parses_frames_dithers_and_exposure() {
-        let text = format!("{HEAD}{ROW1}INFO: SETTLING STATE CHANGE\n{DROP}INFO: DITHER by -4.987, 0.636, new lock pos = 636.680, 509.874\n{ROW2}");
-        let log = p(&text).unwrap();
-        assert_eq!(log.exposure_s, 2.0);
-        assert_eq!(log.frames.len(), 2);
-        let f = &log.frames[0];
-        assert_eq!(
-            (f.line, f.frame, f.time_s, f.ra_raw, f.ra_guide, f.snr),
-            (4, 1, 2.25, -0.899, -0.540, 23.05)
-        );
-        assert_eq!(log.frames[1].line, 8);
-        assert_eq!(
-            log.dithers,
-            vec![Dither {
-                line: 7,
-                next_frame: 1,
-                x: -4.987,
-                y: 0.636
-            }]
-        );
-        assert_eq!(log.name(), "x");
-    }
-
-    #[test]
-    fn error_bad_number() {
-        let text = format!("{HEAD}{ROW1}{}", ROW2.replace("-0.191", "-0.1x1"));
-        assert_eq!(
-            p(&text).unwrap_err().to_string(),
-            "x.txt:5: RARawDistance: not a finite number: \"-0.1x1\""
-        );
-        let text = format!("{HEAD}{}", ROW1.replace("23.05", "nan"));
-        assert_eq!(p(&text).unwrap_err().line, Some(4));
-        let text = format!("{HEAD}{}", ROW1.replace("-0.540", ""));
-        assert!(p(&text)
-            .unwrap_err()
-            .to_string()
-            .starts_with("x.txt:4: RAGuideDistance"));
-    }
-
-    #[test]
-    fn error_short_row() {
-        let text = format!("{HEAD}1,2.250,\"Mount\",0.856,-0.494,-0.899,-0.308,-0.540\n");
-        let e = p(&text).unwrap_err();
-        assert_eq!(e.line, Some(4));
-        assert!(e.message.contains("no SNR column"), "{e}");
-    }
-
-    #[test]
-    fn error_missing_columns() {
-        let text = "Exposure = 2000 ms\nFrame,Time,mount,dx,dy,RAGuideDistance\n";
-        assert_eq!(
-            p(text).unwrap_err().to_string(),
-            "x.txt:2: guide-frame header lacks column(s) RARawDistance, SNR"
-        );
-    }
-
-    #[test]
-    fn error_no_rows() {
-        let text = format!("{HEAD}{DROP}");
-        assert_eq!(
-            p(&text).unwrap_err().to_string(),
-            "x.txt:3: no guide frames (rows with a frame number and RARawDistance)"
-        );
-        assert_eq!(
-            p("hello\n").unwrap_err().to_string(),
-            "x.txt: no `Frame,Time,...` guide-frame header"
-        );
-    }
-
-    #[test]
-    fn error_row_before_header() {
-        let e = p(&format!("Exposure = 2000 ms\n{ROW1}")).unwrap_err();
-        assert_eq!(e.line, Some(2));
-    }
-
-    #[test]
-    fn error_exposure() {
-        let e = p(&format!("{}{ROW1}", HEAD.replace("2000 ms", "2 s"))).unwrap_err();
-        assert_eq!(e.line, Some(2));
-        let e = p(&format!(
-            "{}{ROW1}",
-            HEAD.replace("Exposure = 2000 ms\n", "")
-        ))
-        .unwrap_err();
-        assert_eq!(e.to_string(), "x.txt: no `Exposure = N ms` header line");
-    }
-
-    #[test]
-    fn error_dither() {
-        let e = p(&format!(
-            "{HEAD}{ROW1}INFO: DITHER by abc, 1.0, new lock pos = 1, 2\n{ROW2}"
-        ))
-        .unwrap_err();
-        assert_eq!(
-            e.to_string(),
-            "x.txt:5: DITHER x: not a finite number: \"abc\""
-        );
-    }
-}
+mod tests;

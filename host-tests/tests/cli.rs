@@ -121,6 +121,48 @@ fn replay_bad_log_fails_but_others_run() {
     );
 }
 
+/// Issue 27: `--per-section` prints a row per section of a night, then the
+/// whole log's; a log of one section gets one row of each, alike.
+#[test]
+fn replay_per_section_prints_each_section_then_the_log() {
+    let one = host_tests::data::data_dir().join("phd2-logs/performance_dataset03.txt");
+    let night = host_tests::data::night_logs().unwrap().remove(0);
+    let o = guide_sim(&[
+        "replay",
+        one.to_str().unwrap(),
+        night.to_str().unwrap(),
+        "--csv",
+        "--per-section",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(
+        lines[0],
+        "log,section,line,start_s,frames,exposure_s,time_step_s,hysteresis_rms,ppec_rms,\
+         mkgp_rms,ppec_gain_pct,mkgp_gain_pct,ppec_alone_gain_pct,mkgp_alone_gain_pct"
+    );
+    assert!(lines[1].starts_with("performance_dataset03,1,1,0,664,3.000,3.000,0.1588,"));
+    let whole: Vec<&str> = lines[2].split(',').collect();
+    assert_eq!(
+        &whole[..5],
+        &["performance_dataset03", "all", "", "", "664"]
+    );
+    // The section's figures are the log's.
+    let section: Vec<&str> = lines[1].split(',').collect();
+    assert_eq!(&section[7..], &whole[7..]);
+    let night_rows = lines[3..].len();
+    assert!(night_rows > 10, "{out}");
+    assert!(lines.last().unwrap().contains(",all,"), "{out}");
+    // Without --csv, the goals follow each log.
+    let o = guide_sim(&["replay", one.to_str().unwrap(), "--per-section"]);
+    assert!(
+        stdout(&o).contains("goals: MKGP gain 12.26 %"),
+        "{}",
+        stdout(&o)
+    );
+}
+
 /// Issue 26, item 5: each of these logs was replayed into absurd figures
 /// with exit status 0. Each is now a bad log: status 1, `file:line: what`
 /// on stderr, no row on stdout.
@@ -225,7 +267,7 @@ fn st4_guider_settings_must_be_in_range() {
 fn each_subcommand_help_lists_its_options() {
     for (sub, options) in [
         ("table", &["--cases <FILE>", "--csv"][..]),
-        ("replay", &["[LOG]...", "--csv"]),
+        ("replay", &["[LOG]...", "--csv", "--per-section"]),
         ("bench", &["--csv", "--host-only"]),
         (
             "st4",

@@ -203,43 +203,35 @@ fn the_phd2_log_reads_back() {
         .map(|l| l.split(',').map(|f| f.parse().unwrap()).collect())
         .collect();
     assert_eq!(logs.truth.lines().next(), Some(TRUTH_HEADER));
-    // Every guide row, in order, with its section's time.
-    assert_eq!(log.frames.len(), truth.len());
-    for (f, t) in log.frames.iter().zip(&truth) {
+    // Every guide row, in order, with its section's time; one section per
+    // start, each with its own exposure.
+    assert_eq!(log.sections.len(), starts().len());
+    let frames: Vec<&phd2_log::Frame> = log.sections.iter().flat_map(|s| &s.frames).collect();
+    assert_eq!(frames.len(), truth.len());
+    for (f, t) in frames.iter().zip(&truth) {
         assert_eq!(f.frame, t[1] as u64);
         assert!((f.time_s - t[2]).abs() < 1e-9, "{f:?} {t:?}");
         // The log's 3 decimals against the truth's 4.
         assert!((f.ra_raw - t[6]).abs() < 6e-4, "{f:?} {t:?}");
     }
-    // Each section's clock starts again: one reset per later section.
-    let resets = log
-        .frames
-        .windows(2)
-        .filter(|w| w[1].time_s < w[0].time_s)
-        .count();
-    assert_eq!(resets, starts().len() - 1);
-    // The exposure of the first section, and every section's in its header.
-    assert_eq!(log.exposure_s, starts()[0].exposure_s);
-    let exposures: Vec<f64> = logs
-        .phd2
-        .split("\nGuiding Begins at ")
-        .skip(1)
-        .map(|s| {
-            let line = s.lines().find(|l| l.starts_with("Exposure = ")).unwrap();
-            phd2_log::limits::exposure_s(&line["Exposure =".len()..]).unwrap()
-        })
-        .collect();
+    let exposures: Vec<f64> = log.sections.iter().map(|s| s.exposure_s).collect();
     let want: Vec<f64> = starts().iter().map(|s| s.exposure_s).collect();
     assert_eq!(exposures, want);
-    // Every dither, its amount as the move of the lock (PHD2's sign).
-    assert_eq!(log.dithers.len(), n.alone.dithers.len());
-    for (d, amount) in log.dithers.iter().zip(&n.alone.dithers) {
-        assert!((d.x + amount).abs() < 5e-4, "{d:?} {amount}");
+    // Every dither, its amount as the move of the lock (PHD2's sign), at
+    // its row of the night.
+    let mut first = 0;
+    let mut dithers = Vec::new();
+    for s in &log.sections {
+        dithers.extend(s.dithers().map(|(next, x, _)| (first + next, x)));
+        first += s.frames.len();
+    }
+    assert_eq!(dithers.len(), n.alone.dithers.len());
+    for ((_, x), amount) in dithers.iter().zip(&n.alone.dithers) {
+        assert!((x + amount).abs() < 5e-4, "{x} {amount}");
     }
     // The guider measured the truth plus the camera's 1 px noise.
-    let dither_rows: BTreeSet<usize> = log.dithers.iter().map(|d| d.next_frame).collect();
-    let noise: Vec<f64> = log
-        .frames
+    let dither_rows: BTreeSet<usize> = dithers.iter().map(|&(row, _)| row).collect();
+    let noise: Vec<f64> = frames
         .iter()
         .zip(&truth)
         .enumerate()
@@ -300,6 +292,7 @@ fn the_night_logs_in_data_are_the_commands() {
             "{stem}.truth.csv is not what the command writes"
         );
         let log = phd2_log::parse(&phd2, Path::new(&stem)).unwrap_or_else(|e| panic!("{e}"));
-        assert_eq!(log.frames.len() + 1, truth.lines().count(), "{stem}");
+        let frames: usize = log.sections.iter().map(|s| s.frames.len()).sum();
+        assert_eq!(frames + 1, truth.lines().count(), "{stem}");
     }
 }

@@ -5,10 +5,11 @@
 
 mod common;
 
-use host_tests::guide_algorithm::Hysteresis;
+use host_tests::data;
+use host_tests::guide_algorithm::{GuideAlgorithm, Hysteresis};
 use host_tests::models::Model;
 use host_tests::phd2_log::{self, limits::MAX_DISTANCE_PX};
-use host_tests::replay;
+use host_tests::replay::{self, Options};
 use mkgp_mount::model::guider::{Guider, GuiderConfig};
 use mkgp_mount::model::numeric::scalar::Scalar;
 use mkgp_mount::mount::st4::{Axis, Line, St4, St4Counters, St4Event};
@@ -287,43 +288,114 @@ fn phd2_log_mutations() {
     let text = common::bad_logs::dataset03();
     let lines: Vec<String> = text.lines().map(str::to_owned).collect();
     let end = lines.iter().position(|l| l.starts_with("201,")).unwrap();
-    let path = Path::new("mutated.txt");
     let mut rng = SplitMix64::new(26);
     for iteration in 0..150 * scale() {
         let mut log = lines[..end].to_vec();
         for _ in 0..1 + rng.below(3) {
             mutate(&mut rng, &mut log);
         }
-        let changed: Vec<&String> = log.iter().filter(|l| !lines.contains(l)).collect();
-        let parsed = match phd2_log::parse(&log.join("\n"), path) {
-            Ok(parsed) => parsed,
-            Err(e) => {
-                assert!(
-                    e.line.is_some_and(|n| n <= log.len()) || e.message.starts_with("no "),
-                    "iteration {iteration}: {e}; changed lines {changed:?}"
-                );
-                continue;
+        check_mutated(iteration, &lines, &log);
+    }
+}
+
+/// One random change to a night's structure and headers, of the kinds a
+/// corrupt or hand-made log has: a section's begin, end or a calibration
+/// inserted (with a date that may be garbled), or a header line of random
+/// value (exposure, pixel scale, the mount's rate, the pointing).
+fn mutate_night(rng: &mut SplitMix64, lines: &mut Vec<String>) {
+    let i = rng.below(lines.len() as u64) as usize;
+    let field = random_field(rng);
+    let date = match rng.below(3) {
+        0 => format!("2026-01-28 {:02}:{:02}:00", rng.below(30), rng.below(70)),
+        1 => format!("{field}-01-28 18:00:00"),
+        _ => "2026-01-28 18:35:00".into(),
+    };
+    let side = ["East", "West", "Unknown", &field][rng.below(4) as usize].to_string();
+    let line = match rng.below(9) {
+        0 => format!("Guiding Begins at {date}"),
+        1 => format!("Guiding Ends at {date}"),
+        2 => format!("Calibration Begins at {date}"),
+        3 => "Calibration complete, mount = M.".into(),
+        4 => format!("Exposure = {field} ms"),
+        5 => format!("Pixel scale = {field} arc-sec/px, Binning = 1"),
+        6 => format!("Mount = M, connected, xRate = {field}, yRate = 1"),
+        7 => format!(
+            "RA = {field} hr, Dec = {} deg, Hour angle = {} hr, Pier side = {side}",
+            random_field(rng),
+            random_field(rng)
+        ),
+        _ => format!("X guide algorithm = {field}, Control gain = 0.6"),
+    };
+    lines.insert(i, line);
+}
+
+/// Random changes to a real night (the first sections of the public night
+/// in data/phd2-nights: short sections, a calibration, a slew), to its rows
+/// and to its structure: the parser and the replay of every section never
+/// panic, and a mutated night is refused naming a line (or what the whole
+/// file lacks) or replayed into finite figures within the camera frame, the
+/// whole night's and each section's.
+#[test]
+fn phd2_night_mutations() {
+    let path = data::night_logs().unwrap().remove(0);
+    let text = data::read_text(&path).unwrap();
+    let lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    let end = lines
+        .iter()
+        .position(|l| l.starts_with("Guiding Begins at 2026-01-28 18:50:00"))
+        .unwrap();
+    let mut rng = SplitMix64::new(27);
+    for iteration in 0..100 * scale() {
+        let mut log = lines[..end].to_vec();
+        for _ in 0..1 + rng.below(4) {
+            if rng.below(2) == 0 {
+                mutate_night(&mut rng, &mut log);
+            } else {
+                mutate(&mut rng, &mut log);
             }
-        };
-        for (name, run) in [
-            (
-                "hysteresis",
-                replay::run(&parsed, &mut Hysteresis::phd2_baseline()),
+        }
+        check_mutated(iteration, &lines, &log);
+    }
+}
+
+/// A mutated log (`log`, made from `original`) is refused with an error
+/// naming its line (or what the whole file lacks), or replayed by hysteresis
+/// and MKGP into finite figures within the camera frame the parser's limits
+/// allow: the whole log's and each section's.
+fn check_mutated(iteration: u64, original: &[String], log: &[String]) {
+    let changed: Vec<&String> = log.iter().filter(|l| !original.contains(l)).collect();
+    let parsed = match phd2_log::parse(&log.join("\n"), Path::new("mutated.txt")) {
+        Ok(parsed) => parsed,
+        Err(e) => {
+            assert!(
+                e.line.is_some_and(|n| n <= log.len()) || e.message.starts_with("no "),
+                "iteration {iteration}: {e}; changed lines {changed:?}"
+            );
+            return;
+        }
+    };
+    for (name, mut algorithm) in [
+        (
+            "hysteresis",
+            Box::new(Hysteresis::phd2_baseline()) as Box<dyn GuideAlgorithm>,
+        ),
+        ("MKGP", replay::model_algorithm(Model::Mkgp)),
+    ] {
+        match replay::run_with(&parsed, &mut *algorithm, &Options::default()) {
+            Ok(r) => {
+                let sections = r.sections.iter().map(|s| (s.rms, s.frames));
+                for (rms, frames) in std::iter::once((r.whole.rms, r.whole.frames)).chain(sections)
+                {
+                    assert!(
+                        rms.is_finite() && rms <= MAX_DISTANCE_PX,
+                        "iteration {iteration}: {name} RMS {rms} px over {frames} frames; changed lines {changed:?}"
+                    );
+                }
+            }
+            Err(e) => assert!(
+                e.message.contains("at least 3"),
+                "iteration {iteration}: {e}; changed lines {changed:?}"
             ),
-            ("MKGP", replay::run_model(&parsed, Model::Mkgp)),
-        ] {
-            match run {
-                Ok(r) => assert!(
-                    r.rms.is_finite() && r.rms <= MAX_DISTANCE_PX,
-                    "iteration {iteration}: {name} RMS {} px over {} frames; changed lines {changed:?}",
-                    r.rms,
-                    r.frames
-                ),
-                Err(e) => assert!(
-                    e.message.contains("at least 3"),
-                    "iteration {iteration}: {e}; changed lines {changed:?}"
-                ),
-            }
         }
     }
 }

@@ -22,10 +22,8 @@ use clap::{Args, Parser, Subcommand};
 use host_tests::bench::{self, BenchRow, TargetRun};
 use host_tests::cases;
 use host_tests::data::{self, Error};
-use host_tests::guide_algorithm::{GuideAlgorithm, Hysteresis};
-use host_tests::models::{self, Model};
 use host_tests::phd2_log::{self, GuideLog};
-use host_tests::replay::{self, ReplayResult};
+use host_tests::replay::{self, report};
 use host_tests::{mount_sim, night, nights, st4_sim};
 use host_tests::{svg, table};
 use rayon::prelude::*;
@@ -61,10 +59,15 @@ enum Command {
     /// PHD2's causal replay of guide logs: hysteresis vs ppec and mkgp
     ///
     /// PHD2's causal replay of guide logs (default: all logs in
-    /// host-tests/data/phd2-logs): hysteresis 0.7 baseline vs ppec and mkgp
-    /// (control gain 0.7, prediction gain 0.5, dt = the log's exposure).
+    /// host-tests/data/phd2-logs and host-tests/data/phd2-nights):
+    /// hysteresis 0.7 baseline vs ppec and mkgp (control gain 0.7, prediction
+    /// gain 0.5), section by section with the model carried across (a time
+    /// step of the exposure, or of the frames' cadence where they come
+    /// 1.5 exposures apart or more; frames without a star and pauses told).
     /// A value no guide log can hold fails that log (file:line); a star PHD2
     /// would have lost (beyond its search region) is a dropped frame.
+    /// --per-section: a row per section (within the night, and replayed
+    /// alone), then the whole log's, and without --csv the goals.
     #[command(verbatim_doc_comment)]
     Replay(ReplayArgs),
     /// Cost of one guide frame of the GP guider: host time, Cortex-M4 instructions
@@ -205,12 +208,16 @@ struct TableArgs {
 
 #[derive(Args)]
 struct ReplayArgs {
-    /// PHD2 guide logs [default: all logs in host-tests/data/phd2-logs]
+    /// PHD2 guide logs [default: all logs in host-tests/data/phd2-logs and
+    /// host-tests/data/phd2-nights]
     #[arg(value_name = "LOG")]
     logs: Vec<PathBuf>,
     /// Print the results as CSV
     #[arg(long)]
     csv: bool,
+    /// A row per guiding section, then the whole log's
+    #[arg(long)]
+    per_section: bool,
 }
 
 #[derive(Args)]
@@ -447,31 +454,18 @@ fn cmd_table(TableArgs { cases, csv }: TableArgs) -> ExitCode {
     }
 }
 
-#[derive(Clone, Copy)]
-enum Kind {
-    Hysteresis,
-    Model(Model),
-}
-
-/// The replay's columns, in the order `cmd_replay` reads its results.
-const KINDS: [Kind; 3] = [
-    Kind::Model(Model::Mkgp),
-    Kind::Model(Model::Ppec),
-    Kind::Hysteresis,
-];
-
-fn replay_algorithm(kind: Kind) -> Box<dyn GuideAlgorithm> {
-    match kind {
-        Kind::Hysteresis => Box::new(Hysteresis::phd2_baseline()),
-        Kind::Model(m) => {
-            models::algorithm(m, Some(replay::CONTROL_GAIN), Some(replay::PREDICTION_GAIN))
-        }
-    }
-}
-
-fn cmd_replay(ReplayArgs { logs, csv }: ReplayArgs) -> ExitCode {
+fn cmd_replay(
+    ReplayArgs {
+        logs,
+        csv,
+        per_section,
+    }: ReplayArgs,
+) -> ExitCode {
     let paths = if logs.is_empty() {
-        match data::phd2_logs() {
+        match data::phd2_logs().and_then(|mut p| {
+            p.extend(data::night_logs()?);
+            Ok(p)
+        }) {
             Ok(p) => p,
             Err(e) => {
                 eprintln!("guide-sim: {e}");
@@ -494,71 +488,21 @@ fn cmd_replay(ReplayArgs { logs, csv }: ReplayArgs) -> ExitCode {
             }
         })
         .collect();
-    // One run per (log, kind), collected in the order of the logs and KINDS.
-    let results: Vec<Option<Vec<Result<ReplayResult, Error>>>> = logs
+    let reports: Vec<Option<Result<report::LogReport, Error>>> = logs
         .par_iter()
-        .map(|log| {
-            let log = log.as_ref()?;
-            Some(
-                KINDS
-                    .par_iter()
-                    .map(|&k| replay::run(log, &mut replay_algorithm(k)))
-                    .collect(),
-            )
-        })
+        .map(|log| log.as_ref().map(|l| report::report(l, per_section)))
         .collect();
-    if csv {
-        println!("log,frames,hysteresis_rms,ppec_rms,mkgp_rms,ppec_gain_pct,mkgp_gain_pct");
-    } else {
-        println!(
-            "{:<24} {:>6} {:>14} {:>9} {:>9} {:>13} {:>13}",
-            "log",
-            "frames",
-            "hysteresis_rms",
-            "ppec_rms",
-            "mkgp_rms",
-            "ppec_gain_pct",
-            "mkgp_gain_pct"
-        );
-    }
-    for (log, res) in logs.iter().zip(results) {
-        let (Some(log), Some(res)) = (log, res) else {
+    let out = replay::table::Table::new(csv, per_section);
+    for (log, rep) in logs.iter().zip(reports) {
+        let (Some(log), Some(rep)) = (log, rep) else {
             continue;
         };
-        let res: Result<Vec<ReplayResult>, Error> = res.into_iter().collect();
-        let r = match res {
-            Ok(r) => r,
+        match rep {
+            Ok(rep) => out.log(&log.name(), &rep),
             Err(e) => {
                 eprintln!("guide-sim: {e}");
                 failed = true;
-                continue;
             }
-        };
-        let (mkgp, ppec, hyst) = (r[0], r[1], r[2]);
-        let pg = replay::gain_pct(ppec.rms, hyst.rms);
-        let mg = replay::gain_pct(mkgp.rms, hyst.rms);
-        if csv {
-            println!(
-                "{},{},{:.4},{:.4},{:.4},{:.2},{:.2}",
-                log.name(),
-                hyst.frames,
-                hyst.rms,
-                ppec.rms,
-                mkgp.rms,
-                pg,
-                mg
-            );
-        } else {
-            println!(
-                "{:<24} {:>6} {:>14.4} {:>9.4} {:>9.4} {:>13.2} {:>13.2}",
-                log.name(),
-                hyst.frames,
-                hyst.rms,
-                ppec.rms,
-                mkgp.rms,
-                pg,
-                mg
-            );
         }
     }
     if failed {

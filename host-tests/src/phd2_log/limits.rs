@@ -61,6 +61,64 @@ pub fn exposure_s(rest: &str) -> Result<f64, String> {
     }
 }
 
+/// The coarsest guide-camera pixel scale, arcsec per px: a degree (the
+/// widest guide cameras on a finder give about 20"/px).
+pub const MAX_PIXEL_SCALE: f64 = 3600.0;
+/// The fastest guide pulse, px of correction per second of pulse (the
+/// header's `xRate`): ten times sidereal at 0.01"/px is about 15,000.
+pub const MAX_X_RATE: f64 = 15_000.0;
+/// The fastest guide speed, arcsec per second: ten times sidereal.
+pub const MAX_GUIDE_SPEED: f64 = 150.0;
+/// The longest guide pulse a setting can ask for, ms: an hour.
+pub const MAX_PULSE_MS: f64 = 3_600_000.0;
+
+/// `value` if within `lo..=hi` (`unit` names it in the error).
+fn within(value: f64, name: &str, lo: f64, hi: f64, unit: &str) -> Result<f64, String> {
+    if (lo..=hi).contains(&value) {
+        Ok(value)
+    } else {
+        Err(format!("{name}: {value} is outside {lo} to {hi}{unit}"))
+    }
+}
+
+/// A pixel scale (arcsec/px), above 0 and at most [`MAX_PIXEL_SCALE`].
+pub fn pixel_scale(value: f64, name: &str) -> Result<f64, String> {
+    if value <= 0.0 {
+        return Err(format!("{name}: {value} arcsec/px is no pixel scale"));
+    }
+    within(value, name, 0.0, MAX_PIXEL_SCALE, " arcsec/px")
+}
+
+/// The mount line's `xRate` (px/s), at most [`MAX_X_RATE`].
+pub fn x_rate(value: f64, name: &str) -> Result<f64, String> {
+    within(value, name, 0.0, MAX_X_RATE, " px/s")
+}
+
+/// A guide speed (arcsec/s), at most [`MAX_GUIDE_SPEED`].
+pub fn guide_speed(value: f64, name: &str) -> Result<f64, String> {
+    within(value, name, 0.0, MAX_GUIDE_SPEED, " arcsec/s")
+}
+
+/// A pulse duration (ms), at most [`MAX_PULSE_MS`].
+pub fn pulse_ms(value: f64, name: &str) -> Result<f64, String> {
+    within(value, name, 0.0, MAX_PULSE_MS, " ms")
+}
+
+/// A right ascension, hours.
+pub fn right_ascension(value: f64, name: &str) -> Result<f64, String> {
+    within(value, name, 0.0, 24.0, " hr")
+}
+
+/// A declination, degrees.
+pub fn declination(value: f64, name: &str) -> Result<f64, String> {
+    within(value, name, -90.0, 90.0, " deg")
+}
+
+/// An hour angle, hours (PHD2 writes -12 to 12; 0 to 24 is the same).
+pub fn hour_angle(value: f64, name: &str) -> Result<f64, String> {
+    within(value, name, -24.0, 24.0, " hr")
+}
+
 /// The correction the replay takes for a frame found at `ra_raw` px: its
 /// RAGuideDistance plus the dithers before it (`correction` px). A guide
 /// algorithm corrects the error it measured, plus at most what it predicts

@@ -13,4 +13,5 @@ pub fn trace(name: &str) -> Vec<TraceRow> {
 }
 
 pub mod bad_logs;
+pub mod nights;
 pub mod process;
