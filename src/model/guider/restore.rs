@@ -213,7 +213,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     /// (the port slews the axis: the gears turn, no frame is taken). What
     /// was learned is kept and placed before the next frame as a restore
     /// at a known phase places a snapshot: where the clock puts it if that
-    /// is within [`PLACEMENT_PERIODS`] worm periods, else as near as every
+    /// is within eight worm periods, else as near as every
     /// stage's phase allows, the gap left dark; its level then meets the
     /// first measured frame. Pushed across the jump instead, the cells
     /// would be filled by interpolating the last frame to the next (as
