@@ -351,6 +351,15 @@ fn random_record(rng: &mut SplitMix64) -> Record {
     }
 }
 
+/// A quarter of the saves defer erases.
+fn random_erase(rng: &mut SplitMix64) -> Erase {
+    if rng.below(4) == 0 {
+        Erase::Defer
+    } else {
+        Erase::Allow
+    }
+}
+
 /// A quarter of the saves are cut, at any of their operations (counted on
 /// a copy of `mem`).
 fn random_cut(rng: &mut SplitMix64, mem: &[u8], record: &Record, erase: Erase) -> Option<u64> {
@@ -387,11 +396,7 @@ fn random_saves_with_random_cuts_load_the_last_complete_save() {
         let mut committed = Loaded::default();
         for step in 0..120 {
             let record = random_record(&mut rng);
-            let erase = if rng.below(4) == 0 {
-                Erase::Defer
-            } else {
-                Erase::Allow
-            };
+            let erase = random_erase(&mut rng);
             let cut_at = random_cut(&mut rng, &mem, &record, erase);
             let erase_cut = if rng.below(2) == 0 {
                 EraseCut::InOrder
@@ -474,11 +479,7 @@ fn random_saves_over_dirty_free_space_keep_every_save_reported_done() {
         let mut committed = Loaded::default();
         for step in 0..100 {
             let record = random_record(&mut rng);
-            let erase = if rng.below(4) == 0 {
-                Erase::Defer
-            } else {
-                Erase::Allow
-            };
+            let erase = random_erase(&mut rng);
             if rng.below(3) == 0 {
                 if let Some(free) = free_space(&mem, &record, erase) {
                     for _ in 0..1 + rng.below(3) {

@@ -751,6 +751,20 @@ mod tests {
         g
     }
 
+    /// A fresh guider with `g`'s snapshot restored at a known phase, the
+    /// saved gear time the new one plus `offset_s`.
+    fn restored_at(g: &Guider<f32, 2>, offset_s: f64) -> std::boxed::Box<Guider<f32, 2>> {
+        let mut bytes = [0u8; SNAPSHOT_MAX];
+        let n = g.snapshot(&mut bytes).unwrap();
+        let mut r = std::boxed::Box::new(Guider::<f32, 2>::new(*g.config()));
+        let phase = Phase::Known {
+            gear_time_offset_s: offset_s,
+        };
+        r.restore(&Snapshot::parse(&bytes[..n], 2).unwrap(), phase)
+            .unwrap();
+        r
+    }
+
     /// First 15 min of night 2 after a power cycle, RMS error of the
     /// feed-forward: restored with the phase known, restored without, and
     /// cold, on a clock that starts again at 0 with the gear at `phase`
@@ -813,14 +827,7 @@ mod tests {
             run(&mut c, 0.0, 0.0, 0.0, 900.0, 0.0)
         };
         for jump in [2_700.0, 43_200.0] {
-            let mut bytes = [0u8; SNAPSHOT_MAX];
-            let n = g.snapshot(&mut bytes).unwrap();
-            let mut j = std::boxed::Box::new(Guider::<f32, 2>::new(*g.config()));
-            let phase = Phase::Known {
-                gear_time_offset_s: 0.0,
-            };
-            j.restore(&Snapshot::parse(&bytes[..n], 2).unwrap(), phase)
-                .unwrap();
+            let mut j = restored_at(&g, 0.0);
             run(&mut j, 0.0, 0.0, 8000.0, 8600.0, 8000.0);
             let stage = (j.period_s(1), j.gate(1));
             j.jumped();
@@ -980,14 +987,9 @@ mod tests {
     #[test]
     fn a_snapshot_of_a_restored_model_not_yet_placed_is_the_same_model() {
         let g = learned();
+        let r = restored_at(&g, 100.0);
         let mut a = [0u8; SNAPSHOT_MAX];
         let n = g.snapshot(&mut a).unwrap();
-        let mut r = std::boxed::Box::new(Guider::<f32, 2>::new(*g.config()));
-        let phase = Phase::Known {
-            gear_time_offset_s: 100.0,
-        };
-        r.restore(&Snapshot::parse(&a[..n], 2).unwrap(), phase)
-            .unwrap();
         let mut b = [0u8; SNAPSHOT_MAX];
         assert_eq!(r.snapshot(&mut b).unwrap(), n);
         let (sa, sb) = (
