@@ -82,8 +82,6 @@ pub struct Learner<const N: usize> {
     /// the model's default 10): sets the measurement variance.
     pub snr: f32,
     cadence_s: f32,
-    /// The configured worm period, saved with the model.
-    worm_period_s: f32,
     last_gear_s: Option<f64>,
     settling: u8,
     damping: Damping,
@@ -121,14 +119,13 @@ impl<const N: usize> Learner<N> {
         Guider::init(uninit_field!(slot, guider), config);
         uninit_field!(slot, snr).write(0.0);
         uninit_field!(slot, cadence_s).write(mount.config().guide_cadence_s);
-        uninit_field!(slot, worm_period_s).write(mount.config().worm_period_s);
         uninit_field!(slot, last_gear_s).write(None);
         uninit_field!(slot, settling).write(0);
         uninit_field!(slot, damping).write(Damping::new(mount.config().least_pulse_share));
         uninit_field!(slot, pulse_weight).write(PulseWeight::FULL);
         uninit_field!(slot, bump).write(Bump::NONE);
         uninit_field!(slot, counters).write(LearnerCounters::default());
-        // SAFETY: all 10 fields are written.
+        // SAFETY: all 9 fields are written.
         unsafe { slot.assume_init_mut() }
     }
 
@@ -191,7 +188,7 @@ impl<const N: usize> Learner<N> {
             e => e,
         })?;
         let (worm, share) = head.split_at_mut(WORM_LEN);
-        worm.copy_from_slice(&self.worm_period_s.to_le_bytes());
+        worm.copy_from_slice(&self.configured_worm_s().to_le_bytes());
         let saved = self.damping.saved().with_weight(self.pulse_weight.weight());
         share.copy_from_slice(&saved.to_bytes());
         Ok(WORM_LEN + SAVED_LEN + n)
@@ -222,8 +219,8 @@ impl<const N: usize> Learner<N> {
         };
         let (worm, rest) = bytes.split_first_chunk::<WORM_LEN>().ok_or(too_short)?;
         let (share, model) = rest.split_at_checked(SAVED_LEN).ok_or(too_short)?;
-        let saved_worm = f32::from_le_bytes(*worm);
-        if !((saved_worm - self.worm_period_s).abs() <= WORM_PERIOD_CHANGE * self.worm_period_s) {
+        let (saved_worm, worm_now) = (f32::from_le_bytes(*worm), self.configured_worm_s());
+        if !((saved_worm - worm_now).abs() <= WORM_PERIOD_CHANGE * worm_now) {
             return Err(SnapshotError::WormPeriod);
         }
         let share = SavedShare::parse(share)?;
@@ -255,6 +252,11 @@ impl<const N: usize> Learner<N> {
     /// The model's feed-forward is trusted in full.
     fn trusted(&self) -> bool {
         self.guider.blend_weight() >= TRUSTED_BLEND
+    }
+
+    /// The configured worm period, the model's prior (saved with it).
+    fn configured_worm_s(&self) -> f32 {
+        self.guider.config().prior_period_s as f32
     }
 
     /// A frame of the port's slew at gear time `t`: nothing to learn, and
