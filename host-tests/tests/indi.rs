@@ -378,7 +378,7 @@ fn indi_lx200generic_connects_syncs_and_guides_the_virtual_mount() {
         Own::field(&l, "frames") >= Own::field(&g, "frames") - 4,
         "{l} {g}"
     );
-    let p = own.ask(":~Cg17#");
+    let p = own.ask(":~Cg18#");
     assert_eq!(Own::field(&p, "port_pulses"), 4, "{p}");
 
     drop(_server);

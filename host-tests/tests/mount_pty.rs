@@ -159,7 +159,7 @@ fn the_virtual_mount_answers_lx200_on_its_pty() {
         "{l}"
     );
     assert_eq!(
-        ask(&mut pty, ":~Cg17#", 1),
+        ask(&mut pty, ":~Cg18#", 1),
         "port_pulses=2 manual_moves=0 port_refused=0 st4_refused=0#"
     );
     // Asked together, as `guide-sim view` does: more than the transmit

@@ -15,6 +15,7 @@ use host_tests::night::session::TRUTH_HEADER;
 use host_tests::night::{self, NightRun, MAX_RATE_SIDEREAL};
 use host_tests::phd2_log;
 use host_tests::st4_sim::Firmware;
+use mkgp_mount::mount::guiding::calibration;
 use std::collections::BTreeSet;
 use std::path::Path;
 use std::sync::OnceLock;
@@ -147,9 +148,20 @@ fn the_night_runs_through_and_the_counters_say_what_happened() {
         let t = m.tally(activity);
         assert!(t.frames > 0 && t.learned == 0, "{activity:?}: {t:?}");
     }
+    // Each calibration is recognised once from its pulses, and from its
+    // third equal pulse to the hold after its last nothing is learned: at
+    // most its first pulses and the frames filled between them are.
+    let calibration = m.tally(Activity::Calibration);
+    assert_eq!(calibration.windows as usize, starts().len());
     assert_eq!(
-        m.tally(Activity::Calibration).windows as usize,
-        starts().len()
+        c.guiding.calibrations, calibration.windows,
+        "{:?}",
+        c.guiding
+    );
+    let before_recognised = u32::from(calibration::RUN) + 1;
+    assert!(
+        calibration.learned <= before_recognised * calibration.windows,
+        "{calibration:?}"
     );
     // No fault counter raised by an ordinary night: the model's faults,
     // frames lost between the tasks, feed-forwards refused, time running

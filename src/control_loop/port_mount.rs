@@ -141,6 +141,7 @@ impl LearnedFrame {
                 FrameKind::Measured => b'm',
                 FrameKind::Unmeasured => b'u',
                 FrameKind::Moved => b's',
+                FrameKind::Calibration => b'c',
                 FrameKind::Dither { .. } => b'd',
             },
             observation_mas: mas(self.observation_arcsec.into()),
@@ -343,6 +344,7 @@ fn guiding_counter(c: &GuidingCounters, index: usize) -> Option<(&'static str, u
         14 => ("time_backwards", c.time_backwards),
         15 => ("stray_ends", c.stray_ends),
         16 => ("backlogs", c.backlogs),
+        17 => ("calibrations", c.calibrations),
         _ => return None,
     })
 }
@@ -380,7 +382,7 @@ fn fault_counter(
 }
 
 /// Guiding's own counters, then the port motion's (ownership refusals).
-const GUIDING_COUNTERS: usize = 17;
+const GUIDING_COUNTERS: usize = 18;
 
 impl MountPort for PortMount<'_> {
     fn position(&mut self) -> Equatorial {

@@ -336,7 +336,7 @@ fn an_st4_pulse_and_a_port_pulse_on_one_axis_the_first_keeps_it() {
     let c = r.lp.guiding().counters();
     assert_eq!((c.ra_pulses, c.dec_pulses, c.stray_ends), (1, 2, 0));
     assert_eq!(
-        r.ask(":~Cg17#"),
+        r.ask(":~Cg18#"),
         "port_pulses=2 manual_moves=0 port_refused=1 st4_refused=1#"
     );
 }

@@ -80,6 +80,7 @@ pub fn frame(learner: &Learner<STAGES>, msg: &FrameRecord, ff: &FeedForward) {
         FrameKind::Measured => "measured",
         FrameKind::Unmeasured => "unmeasured",
         FrameKind::Moved => "moved by the port",
+        FrameKind::Calibration => "calibration",
         FrameKind::Dither { .. } => "dither",
     };
     defmt::info!(
@@ -132,8 +133,9 @@ pub fn frame(learner: &Learner<STAGES>, msg: &FrameRecord, ff: &FeedForward) {
         g.frames_dropped
     );
     defmt::info!(
-        "guiding: dithers {}, silences {}, backlogs {}, stray ends {}, time backwards {}, clamped RA {} Dec {}",
+        "guiding: dithers {}, calibrations {}, silences {}, backlogs {}, stray ends {}, time backwards {}, clamped RA {} Dec {}",
         g.dithers,
+        g.calibrations,
         g.silences,
         g.backlogs,
         g.stray_ends,

@@ -21,6 +21,9 @@ pub enum FrameKind {
     /// The frame's RA pulse was a dither of this many arcsec (signed); not
     /// learned, and the model settles.
     Dither { amount_arcsec: f32 },
+    /// The guider was calibrating (`crate::mount::guiding::calibration`):
+    /// its pulses measured the mount, not the gear; not learned.
+    Calibration,
     /// The command port moved the RA axis (or stopped its tracking) during
     /// the frame: nothing measured, and gear time ran ahead by the slew.
     /// The model keeps what it learned and places it before the next frame.

@@ -20,9 +20,10 @@
 use heapless::Deque;
 
 use super::applied::{secs_between, Applied, Mark};
+use super::calibration::{CalibrationWatch, HOLD_CADENCES};
 use super::{GuidingCounters, FRAME_QUEUE};
 use crate::mount::frame::{Frame, FrameKind};
-use crate::mount::st4::Direction;
+use crate::mount::st4::{Axis, Direction};
 
 /// The frame an RA pulse opened: C at its start, and its direction.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -120,6 +121,7 @@ pub(super) struct Framer {
     cadence_us: u64,
     pulse_cadence: PulseCadence,
     backlog: Backlog,
+    calibration: CalibrationWatch,
     dither_threshold_us: u64,
     silence_frames: u32,
     guide_arcsec_per_s: f32,
@@ -149,6 +151,7 @@ impl Framer {
             cadence_us,
             pulse_cadence: PulseCadence::default(),
             backlog: Backlog::default(),
+            calibration: CalibrationWatch::default(),
             dither_threshold_us,
             silence_frames,
             guide_arcsec_per_s,
@@ -170,6 +173,29 @@ impl Framer {
     /// The guider's RA pulses run back to back ([`Backlog`]).
     pub fn backlogged(&self) -> bool {
         self.backlog.on
+    }
+
+    /// The guider calibrates at `at_us` ([`super::calibration`]).
+    pub fn calibrating(&self, at_us: u64) -> bool {
+        self.calibration.active(at_us)
+    }
+
+    /// A pulse on `axis` ended: watch it for a calibration's steps.
+    pub fn pulse_ended(
+        &mut self,
+        axis: Axis,
+        direction: Direction,
+        length_us: u64,
+        at_us: u64,
+        counters: &mut GuidingCounters,
+    ) {
+        let hold_us = self.fill_cadence_us().saturating_mul(HOLD_CADENCES);
+        if self
+            .calibration
+            .pulse(axis, direction, length_us, at_us, hold_us)
+        {
+            counters.calibrations = counters.calibrations.saturating_add(1);
+        }
     }
 
     /// Learning is frozen: the guider has been silent for too long.
@@ -223,6 +249,7 @@ impl Framer {
         };
         self.backlog.pulse_ended(at_us);
         let duration_us = at_us.saturating_sub(start_us);
+        self.pulse_ended(Axis::Ra, open.direction, duration_us, at_us, counters);
         let correction =
             open.direction.sign() * duration_us as f32 * 1e-6 * self.guide_arcsec_per_s;
         let kind = if duration_us > self.dither_threshold_us {
@@ -318,6 +345,9 @@ impl Framer {
             .is_some_and(|prev| mark.port_us != prev.port_us);
         let kind = match kind {
             FrameKind::Measured | FrameKind::Unmeasured if port_moved => FrameKind::Moved,
+            FrameKind::Measured | FrameKind::Unmeasured if self.calibrating(mark.at_us) => {
+                FrameKind::Calibration
+            }
             kind => kind,
         };
         let gear_error = match kind {
@@ -341,7 +371,10 @@ impl Framer {
         if filled {
             c.filled_frames = c.filled_frames.saturating_add(1);
         }
-        if matches!(kind, FrameKind::Unmeasured | FrameKind::Moved) {
+        if matches!(
+            kind,
+            FrameKind::Unmeasured | FrameKind::Moved | FrameKind::Calibration
+        ) {
             c.unmeasured_frames = c.unmeasured_frames.saturating_add(1);
         }
         if self.queue.is_full() {

@@ -79,7 +79,7 @@
 //! The rate is limited to the guide rate: a gear error changing faster than
 //! that is no gear error.
 //!
-//! # Dithers and silence
+//! # Dithers, calibrations and silence
 //!
 //! - An RA pulse longer than `dither_threshold_us` is a dither: its move is
 //!   taken out of C, the frame is not learned, and the model is told with
@@ -89,6 +89,10 @@
 //!   the worm phase the dither moved; here gear time comes from the steps,
 //!   which already include the dither's steps, so passing the amount would
 //!   shift the phase twice.
+//! - A calibration: equal pulses in a row, one way on one axis, as a guider
+//!   calibrates (`calibration`). From the third to a hold after the last,
+//!   the frames are `Calibration`: not learned, and the pulses are carried
+//!   out in full (the guider measures their moves).
 //! - Silence: after more than `silence_frames` filled frames in a row with
 //!   no pulse on either axis, learning freezes: the frames are passed to the
 //!   model as unmeasured (`None`), so the model keeps predicting from what
@@ -107,6 +111,7 @@
 
 mod applied;
 pub mod bump;
+pub mod calibration;
 pub mod damping;
 mod feed_forward;
 mod framer;
@@ -136,8 +141,9 @@ pub struct GuidingCounters {
     /// Pulse starts per axis.
     pub ra_pulses: u32,
     pub dec_pulses: u32,
-    /// Frames made (all kinds), and of them: filled by the cadence, in
-    /// silence (unmeasured), dithers.
+    /// Frames made (all kinds), and of them: filled by the cadence, not
+    /// measured (in silence, while the port moved the axis, during a
+    /// calibration), dithers.
     pub frames: u32,
     pub filled_frames: u32,
     pub unmeasured_frames: u32,
@@ -146,6 +152,8 @@ pub struct GuidingCounters {
     /// its RA pulses ran back to back (`framer`).
     pub silences: u32,
     pub backlogs: u32,
+    /// Calibrations recognised from the guider's pulses (`calibration`).
+    pub calibrations: u32,
     /// Times the feed-forward was faded out completely after a silence.
     pub feed_forward_faded: u32,
     /// Feed-forwards refused (non-finite) or limited to the guide rate.
@@ -366,19 +374,30 @@ impl Guiding {
                 axis: Axis::Dec,
                 at_us,
             } => {
-                if self.dec_pulse.take().is_none() {
+                let Some((direction, start_us)) = self.dec_pulse.take() else {
                     self.counters.stray_ends = self.counters.stray_ends.saturating_add(1);
                     return;
-                }
+                };
                 self.heard(at_us);
+                self.frames.pulse_ended(
+                    Axis::Dec,
+                    direction,
+                    at_us.saturating_sub(start_us),
+                    at_us,
+                    &mut self.counters,
+                );
             }
         }
     }
 
     /// The share of an RA pulse starting at `at_us`: damped only while the
-    /// learner's feed-forward is in full effect and the port adds no motion.
+    /// learner's feed-forward is in full effect, the port adds no motion
+    /// and the guider does not calibrate (it measures its pulses' moves).
     fn share_for(&self, direction: Direction, at_us: u64) -> Option<SharedPulse> {
-        if self.motion != Motion::TRACKING || self.frames.backlogged() {
+        if self.motion != Motion::TRACKING
+            || self.frames.backlogged()
+            || self.frames.calibrating(at_us)
+        {
             return None;
         }
         let share = self

@@ -155,7 +155,7 @@ fn silence_fills_then_freezes_then_fades() {
     while let Some(f) = g.take_frame() {
         match f.kind {
             FrameKind::Measured => kinds[0] += 1,
-            FrameKind::Unmeasured | FrameKind::Moved => kinds[1] += 1,
+            FrameKind::Unmeasured | FrameKind::Moved | FrameKind::Calibration => kinds[1] += 1,
             FrameKind::Dither { .. } => kinds[2] += 1,
         }
     }
@@ -254,11 +254,13 @@ fn pulses_back_to_back_freeze_learning_and_the_feed_forward() {
         until_gear_s: 1e9,
         pulse_share: crate::mount::frame::PulseShare::FULL,
     });
-    // A pulse of `on_us` every 2 s, `n` times from `t`: the kinds of the
-    // frames they made, and the feed-forward at the end.
+    // A pulse of about `on_us` every 2 s, `n` times from `t` (lengths that
+    // differ: equal ones would be a calibration's): the kinds of the frames
+    // they made, and the feed-forward at the end.
     let mut pulses = |g: &mut Guiding, t: &mut u64, on_us: u64, n: u32| {
         let mut kinds = std::vec::Vec::new();
-        for _ in 0..n {
+        for k in 0..n {
+            let on_us = on_us - u64::from(k % 3) * 5_000;
             g.on_event(start(Direction::Plus, *t));
             track(g, *t, *t + on_us, &mut pos);
             g.on_event(end(*t + on_us));
