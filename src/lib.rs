@@ -11,6 +11,7 @@
 #![cfg_attr(not(test), no_std)]
 
 pub mod control_loop;
+pub mod counters;
 pub mod model;
 pub mod mount;
 pub mod persist;

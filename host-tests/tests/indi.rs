@@ -15,6 +15,8 @@
 //! Every process it starts is killed at the end (indiserver's whole process
 //! group, its driver included); each external command has a timeout.
 
+use mkgp_mount::counters::Counters;
+use mkgp_mount::mount::guiding::GuidingCounters;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
 use std::os::unix::process::CommandExt;
@@ -378,7 +380,8 @@ fn indi_lx200generic_connects_syncs_and_guides_the_virtual_mount() {
         Own::field(&l, "frames") >= Own::field(&g, "frames") - 4,
         "{l} {g}"
     );
-    let p = own.ask(":~Cg18#");
+    // The port motion's counters follow guiding's own.
+    let p = own.ask(&format!(":~Cg{}#", GuidingCounters::NAMES.len()));
     assert_eq!(Own::field(&p, "port_pulses"), 4, "{p}");
 
     drop(_server);

@@ -7,6 +7,8 @@
 mod common;
 
 use common::process::{guide_sim, Group};
+use mkgp_mount::counters::Counters;
+use mkgp_mount::mount::guiding::GuidingCounters;
 use mkgp_mount::mount::learner::FIRMWARE_STAGES;
 use std::fs::{File, OpenOptions};
 use std::io::{ErrorKind, Read, Write};
@@ -159,7 +161,11 @@ fn the_virtual_mount_answers_lx200_on_its_pty() {
         "{l}"
     );
     assert_eq!(
-        ask(&mut pty, ":~Cg18#", 1),
+        ask(
+            &mut pty,
+            &format!(":~Cg{}#", GuidingCounters::NAMES.len()),
+            1
+        ),
         "port_pulses=2 manual_moves=0 port_refused=0 st4_refused=0#"
     );
     // Asked together, as `guide-sim view` does: more than the transmit

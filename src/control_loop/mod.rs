@@ -39,12 +39,12 @@ pub const RATE_UPDATE_US: u64 = 10_000;
 /// Events one wake-up reports for logging (the rest are counted).
 pub const LOG_EVENTS: usize = 4;
 
-/// A completed guide frame for the learner, with the counters at the time
-/// it was taken (logged with it).
+/// A completed guide frame for the learner, with the guiding's counters at
+/// the time it was taken (logged with it; the ST4 counters are logged as
+/// they change, `Wake::st4_counters`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FrameRecord {
     pub frame: Frame,
-    pub st4: St4Counters,
     pub guiding: GuidingCounters,
 }
 
@@ -185,7 +185,6 @@ impl ControlLoop {
         let frame = self.guiding.take_frame()?;
         Some(FrameRecord {
             frame,
-            st4: self.feed.st4().counters(),
             guiding: self.guiding.counters(),
         })
     }

@@ -16,29 +16,17 @@ use crate::mount::guiding::{Guiding, Motion};
 use crate::mount::st4::{Axis, Direction, Line, St4Event};
 use crate::port::mount_port::{GuidePulse, ManualRate};
 
-/// What the port's motion did and what was refused, since start-up.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct PortMotionCounters {
-    /// Port guide pulses started.
-    pub port_pulses: u32,
-    /// Manual motions started.
-    pub manual_moves: u32,
-    /// Port pulses and manual motions refused: an ST4 pulse held the axis.
-    pub port_refused: u32,
-    /// ST4 pulses refused: the port held the axis.
-    pub st4_refused: u32,
-}
-
-impl PortMotionCounters {
-    /// The counters by index, for the port's counter lists.
-    pub fn get(&self, index: usize) -> Option<(&'static str, u32)> {
-        Some(match index {
-            0 => ("port_pulses", self.port_pulses),
-            1 => ("manual_moves", self.manual_moves),
-            2 => ("port_refused", self.port_refused),
-            3 => ("st4_refused", self.st4_refused),
-            _ => return None,
-        })
+crate::counters! {
+    /// What the port's motion did and what was refused, since start-up.
+    pub struct PortMotionCounters {
+        /// Port guide pulses started.
+        port_pulses,
+        /// Manual motions started.
+        manual_moves,
+        /// Port pulses and manual motions refused: an ST4 pulse held the axis.
+        port_refused,
+        /// ST4 pulses refused: the port held the axis.
+        st4_refused,
     }
 }
 

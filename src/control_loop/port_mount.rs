@@ -19,13 +19,13 @@
 use heapless::{Deque, Vec};
 
 use crate::control_loop::ControlLoop;
+use crate::counters::Counters;
 use crate::model::guider::Faults;
 use crate::model::numeric::clamp;
 use crate::mount::config::{Mount, MountConfig, SIDEREAL_ARCSEC_PER_S};
 use crate::mount::frame::{FeedForward, Frame, FrameKind};
 use crate::mount::guiding::GuidingCounters;
 use crate::mount::learner::{Learner, LearnerCounters};
-use crate::mount::st4::St4Counters;
 use crate::persist::StoreCounters;
 use crate::port::coords::{Dec, Equatorial, Ra};
 use crate::port::mount_port::{
@@ -313,53 +313,6 @@ pub struct PortMount<'a> {
     pub port: usize,
 }
 
-fn st4_counter(c: &St4Counters, index: usize) -> Option<(&'static str, u32)> {
-    Some(match index {
-        0 => ("glitches", c.glitches),
-        1 => ("both_lines", c.both_lines),
-        2 => ("capped", c.capped),
-        3 => ("stuck", c.stuck),
-        4 => ("out_of_order", c.out_of_order),
-        5 => ("dropped", c.dropped),
-        _ => return None,
-    })
-}
-
-fn guiding_counter(c: &GuidingCounters, index: usize) -> Option<(&'static str, u32)> {
-    Some(match index {
-        0 => ("ra_pulses", c.ra_pulses),
-        1 => ("dec_pulses", c.dec_pulses),
-        2 => ("frames", c.frames),
-        3 => ("filled_frames", c.filled_frames),
-        4 => ("unmeasured_frames", c.unmeasured_frames),
-        5 => ("dithers", c.dithers),
-        6 => ("silences", c.silences),
-        7 => ("feed_forward_faded", c.feed_forward_faded),
-        8 => ("feed_forward_rejected", c.feed_forward_rejected),
-        9 => ("feed_forward_limited", c.feed_forward_limited),
-        10 => ("feed_forward_expired", c.feed_forward_expired),
-        11 => ("frames_dropped", c.frames_dropped),
-        12 => ("ra_clamped", c.ra_clamped),
-        13 => ("dec_clamped", c.dec_clamped),
-        14 => ("time_backwards", c.time_backwards),
-        15 => ("stray_ends", c.stray_ends),
-        16 => ("backlogs", c.backlogs),
-        17 => ("calibrations", c.calibrations),
-        _ => return None,
-    })
-}
-
-fn learner_counter(c: &LearnerCounters, index: usize) -> Option<(&'static str, u32)> {
-    Some(match index {
-        0 => ("frames", c.frames),
-        1 => ("learned", c.learned),
-        2 => ("not_learned", c.not_learned),
-        3 => ("dithers", c.dithers),
-        4 => ("bumps", c.bumps),
-        _ => return None,
-    })
-}
-
 /// The faults group: edges the ST4 queue lost, the model's faults, then
 /// the store's.
 fn fault_counter(
@@ -368,21 +321,14 @@ fn fault_counter(
     store: &StoreCounters,
     index: usize,
 ) -> Option<(&'static str, u32)> {
-    Some(match index {
-        0 => ("lost_edges", lost_edges),
-        1 => ("model_bad_time", f.bad_time),
-        2 => ("model_bad_input", f.bad_input),
-        3 => ("model_inference_failures", f.inference_failures),
-        4 => ("model_grid_restarts", f.grid_restarts),
-        5 => ("model_bad_dithers", f.bad_dithers),
-        6 => ("store_rewrites", store.rewrites),
-        7 => ("store_unverified", store.unverified),
-        _ => return None,
-    })
+    let model = index.checked_sub(1);
+    let store_index = model.and_then(|i| i.checked_sub(Faults::NAMES.len()));
+    match (model, store_index) {
+        (None, _) => Some(("lost_edges", lost_edges)),
+        (Some(i), None) => f.get(i),
+        (Some(_), Some(i)) => store.get(i),
+    }
 }
-
-/// Guiding's own counters, then the port motion's (ownership refusals).
-const GUIDING_COUNTERS: usize = 18;
 
 impl MountPort for PortMount<'_> {
     fn position(&mut self) -> Equatorial {
@@ -453,18 +399,17 @@ impl MountPort for PortMount<'_> {
 
     fn counter(&mut self, group: CounterGroup, index: usize) -> Option<Counter> {
         let (name, value) = match group {
-            CounterGroup::St4 => st4_counter(&self.control.st4_counters(), index)?,
-            CounterGroup::Guiding => {
-                let c = self.control.guiding().counters();
-                match guiding_counter(&c, index) {
-                    Some(nv) => nv,
-                    None => self
-                        .control
-                        .port_counters()
-                        .get(index.checked_sub(GUIDING_COUNTERS)?)?,
-                }
-            }
-            CounterGroup::Learner => learner_counter(&self.state.learner.counters, index)?,
+            CounterGroup::St4 => self.control.st4_counters().get(index)?,
+            // Guiding's own counters, then the port motion's (ownership
+            // refusals).
+            CounterGroup::Guiding => match self.control.guiding().counters().get(index) {
+                Some(nv) => nv,
+                None => self
+                    .control
+                    .port_counters()
+                    .get(index.checked_sub(GuidingCounters::NAMES.len())?)?,
+            },
+            CounterGroup::Learner => self.state.learner.counters.get(index)?,
             CounterGroup::Faults => fault_counter(
                 self.control.lost_edges(),
                 &self.state.learner.faults,

@@ -5,8 +5,10 @@
 use super::port_mount::{PortMount, PortState, StoreRequest};
 use super::st4_feed::{EdgeQueue, EdgeSource, RawEdge};
 use super::*;
+use crate::counters::Counters;
 use crate::mount::config::MountConfig;
 use crate::mount::frame::{FeedForward, FrameKind, PulseShare};
+use crate::mount::guiding::GuidingCounters;
 use crate::mount::st4::Line;
 use crate::port::coords::{Dec, Equatorial, Ra};
 use crate::port::interpreter::STORE_REPLY_TIMEOUT_US;
@@ -336,7 +338,7 @@ fn an_st4_pulse_and_a_port_pulse_on_one_axis_the_first_keeps_it() {
     let c = r.lp.guiding().counters();
     assert_eq!((c.ra_pulses, c.dec_pulses, c.stray_ends), (1, 2, 0));
     assert_eq!(
-        r.ask(":~Cg18#"),
+        r.ask(&format!(":~Cg{}#", GuidingCounters::NAMES.len())),
         "port_pulses=2 manual_moves=0 port_refused=1 st4_refused=1#"
     );
 }

@@ -80,6 +80,7 @@ pub async fn learning_task(learner: &'static mut Learner<STAGES>, mut storage: O
         MODEL_ORIGIN.lock(|o| o.set(origin));
     }
     let mut last_save = Instant::now();
+    let mut logged = log::Logged::NONE;
     loop {
         let event = match select3(
             FRAMES.receive(),
@@ -131,7 +132,7 @@ pub async fn learning_task(learner: &'static mut Learner<STAGES>, mut storage: O
         let ff = learner.learn(msg.frame);
         FRAMES_LEARNED.fetch_add(1, Ordering::Relaxed);
         LEARNED.signal(LearnedFrame::of(learner, &msg.frame, ff));
-        log::frame(learner, &msg, &ff);
+        log::frame(learner, &msg, &ff, &mut logged);
         if let Some(s) = storage.as_mut() {
             if last_save.elapsed() >= SAVE_EVERY {
                 last_save = Instant::now();

@@ -1,12 +1,14 @@
 //! The defmt log lines. defmt-rtt holds a critical section while it
 //! encodes a line (the step tick waits meanwhile), so the lines are kept
-//! short: at most six values each.
+//! short: at most six values each, and a counter a line (`group name
+//! value`, from its group's one definition: `mkgp_mount::counters`).
 
 use mkgp_mount::control_loop::{FrameRecord, Wake};
+use mkgp_mount::counters::Counters;
 use mkgp_mount::mount::config::{ConfigError, Value};
 use mkgp_mount::mount::frame::{FeedForward, FrameKind};
 use mkgp_mount::mount::learner::Learner;
-use mkgp_mount::mount::st4::{Axis, Direction, St4Counters, St4Event};
+use mkgp_mount::mount::st4::{Axis, Direction, St4Event};
 
 use crate::firmware::guiding_task::{storms, ST4_COUNTERS};
 use crate::firmware::port_io::LINKS;
@@ -41,16 +43,58 @@ fn event(ev: &St4Event) {
     }
 }
 
-pub fn counters(c: St4Counters) {
-    defmt::info!(
-        "ST4 counters: glitches {}, both lines {}, capped {}, stuck {}, out of order {}, events dropped {}",
-        c.glitches,
-        c.both_lines,
-        c.capped,
-        c.stuck,
-        c.out_of_order,
-        c.dropped
-    );
+/// The most counters a group has (guiding's).
+const MOST: usize = 24;
+
+/// A group's values in index order, 0 beyond its last.
+fn values<C: Counters>(c: &C) -> [u32; MOST] {
+    let mut v = [0; MOST];
+    for (index, slot) in v.iter_mut().enumerate() {
+        if let Some((_, value)) = c.get(index) {
+            *slot = value;
+        }
+    }
+    v
+}
+
+/// The counters of a group whose value differs from `before` (all 0 when
+/// nothing was logged before), a line each. One function for every group:
+/// a copy per group would cost flash.
+#[inline(never)]
+fn changed(group: &str, names: &[&str], before: &[u32; MOST], now: &[u32; MOST]) {
+    for ((name, was), value) in names.iter().zip(before).zip(now) {
+        if value != was {
+            defmt::info!("{=str} {=str} {}", group, name, value);
+        }
+    }
+}
+
+/// The counters of `group` that are not 0, a line each.
+fn not_zero<C: Counters>(group: &str, now: &C) {
+    changed(group, C::NAMES, &[0; MOST], &values(now));
+}
+
+/// The counters as the frame log last wrote them: each frame's log writes
+/// those that changed since.
+pub struct Logged {
+    learner: [u32; MOST],
+    faults: [u32; MOST],
+    guiding: [u32; MOST],
+}
+
+impl Logged {
+    pub const NONE: Logged = Logged {
+        learner: [0; MOST],
+        faults: [0; MOST],
+        guiding: [0; MOST],
+    };
+
+    /// Logs what changed in `group` (`last` its values as last logged).
+    fn update<C: Counters>(group: &str, last: &mut [u32; MOST], now: &C) {
+        let now = values(now);
+        changed(group, C::NAMES, last, &now);
+        *last = now;
+    }
 }
 
 pub fn wake(wake: &Wake) {
@@ -67,12 +111,12 @@ pub fn wake(wake: &Wake) {
         defmt::info!("ST4: {} more events not logged", wake.more_events);
     }
     if let Some(c) = wake.st4_counters {
-        counters(c);
+        not_zero("ST4", &c);
     }
 }
 
 /// The per-frame log.
-pub fn frame(learner: &Learner<STAGES>, msg: &FrameRecord, ff: &FeedForward) {
+pub fn frame(learner: &Learner<STAGES>, msg: &FrameRecord, ff: &FeedForward, logged: &mut Logged) {
     let f = &msg.frame;
     let model = learner.guider();
     let kind = match f.kind {
@@ -104,53 +148,9 @@ pub fn frame(learner: &Learner<STAGES>, msg: &FrameRecord, ff: &FeedForward) {
             model.gate(stage) as f32
         );
     }
-    let l = learner.counters();
-    let m = model.faults();
-    defmt::info!(
-        "model counters: frames {}, learned {}, not learned {}, dithers {}, bumps {}",
-        l.frames,
-        l.learned,
-        l.not_learned,
-        l.dithers,
-        l.bumps
-    );
-    defmt::info!(
-        "model faults: bad time {}, bad input {}, inference {}, grid restarts {}, bad dithers {}",
-        m.bad_time,
-        m.bad_input,
-        m.inference_failures,
-        m.grid_restarts,
-        m.bad_dithers
-    );
-    let g = &msg.guiding;
-    defmt::info!(
-        "guiding: pulses RA {} Dec {}, frames {} (filled {}, unmeasured {}, dropped {})",
-        g.ra_pulses,
-        g.dec_pulses,
-        g.frames,
-        g.filled_frames,
-        g.unmeasured_frames,
-        g.frames_dropped
-    );
-    defmt::info!(
-        "guiding: dithers {}, calibrations {}, silences {}, backlogs {}, stray ends {}, time backwards {}, clamped RA {} Dec {}",
-        g.dithers,
-        g.calibrations,
-        g.silences,
-        g.backlogs,
-        g.stray_ends,
-        g.time_backwards,
-        g.ra_clamped,
-        g.dec_clamped
-    );
-    defmt::info!(
-        "feed-forward: rejected {}, limited {}, expired {}, faded {}",
-        g.feed_forward_rejected,
-        g.feed_forward_limited,
-        g.feed_forward_expired,
-        g.feed_forward_faded
-    );
-    counters(msg.st4);
+    Logged::update("model", &mut logged.learner, &learner.counters());
+    Logged::update("model faults", &mut logged.faults, &model.faults());
+    Logged::update("guiding", &mut logged.guiding, &msg.guiding);
 }
 
 /// A refused configuration: the field, its value and the rule.
@@ -178,7 +178,7 @@ pub fn status() {
         dec_rate,
     );
     if let Some(c) = ST4_COUNTERS.lock(|c| c.get()) {
-        counters(c);
+        not_zero("ST4", &c);
     }
     let storms = storms();
     if storms > 0 {

@@ -123,28 +123,29 @@ impl<S: Scalar> Default for GuiderConfig<S> {
     }
 }
 
-/// What went wrong, counted since construction. Each has a defined outcome
-/// that never reaches the motor as garbage.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Faults {
-    /// Frame time not finite, or not continuing the clock (earlier than
-    /// the previous frame, or more than [`MAX_FRAME_GAP_S`] later): the
-    /// frame was ignored and the control is 0. A frame off the clock by
-    /// more than [`MAX_FRAME_GAP_S`] either way is held: if the next frame
-    /// continues it, the clock has moved and guiding goes on from there.
-    pub bad_time: u32,
-    /// Input not finite or beyond `max_input`: handled as a frame without a
-    /// star.
-    pub bad_input: u32,
-    /// The Gram matrix did not factor: the frame fell back to hysteresis.
-    pub inference_failures: u32,
-    /// The clock moved (a held frame confirmed, see `bad_time`) by more
-    /// than the grid's window, or back: the data was dropped and learning
-    /// started again (the periods are kept).
-    pub grid_restarts: u32,
-    /// A dither refused: a non-finite amount, a zero or non-finite rate, or
-    /// a gear-time shift beyond [`MAX_DITHER_OFFSET_S`].
-    pub bad_dithers: u32,
+crate::counters! {
+    /// What went wrong, counted since construction. Each has a defined outcome
+    /// that never reaches the motor as garbage.
+    pub struct Faults("model_") {
+        /// Frame time not finite, or not continuing the clock (earlier than
+        /// the previous frame, or more than [`MAX_FRAME_GAP_S`] later): the
+        /// frame was ignored and the control is 0. A frame off the clock by
+        /// more than [`MAX_FRAME_GAP_S`] either way is held: if the next frame
+        /// continues it, the clock has moved and guiding goes on from there.
+        bad_time,
+        /// Input not finite or beyond `max_input`: handled as a frame without a
+        /// star.
+        bad_input,
+        /// The Gram matrix did not factor: the frame fell back to hysteresis.
+        inference_failures,
+        /// The clock moved (a held frame confirmed, see `bad_time`) by more
+        /// than the grid's window, or back: the data was dropped and learning
+        /// started again (the periods are kept).
+        grid_restarts,
+        /// A dither refused: a non-finite amount, a zero or non-finite rate, or
+        /// a gear-time shift beyond [`MAX_DITHER_OFFSET_S`].
+        bad_dithers,
+    }
 }
 
 /// The guider state for `N` periodic stages (2 by default: the worm and one

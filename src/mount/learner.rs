@@ -57,21 +57,22 @@ const _: () = assert!(FIRMWARE_STAGES <= SNAPSHOT_MAX_STAGES && RECORD_MAX <= MO
 /// in full, and pulse damping may be earned.
 const TRUSTED_BLEND: f64 = 0.9;
 
-/// What the learner did, counted since construction.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct LearnerCounters {
-    /// Frames given to the model (one `observe` call each).
-    pub frames: u32,
-    /// Of them learned as observations of the gear error.
-    pub learned: u32,
-    /// Not learned: silence, dithers and bumps and the frames settling
-    /// after one (passed as unmeasured), and frames the model refused (a bad
-    /// observation or time, counted in its `Faults`).
-    pub not_learned: u32,
-    /// Dithers the model was told about.
-    pub dithers: u32,
-    /// Steps of the star taken out of the observations (`bump`).
-    pub bumps: u32,
+crate::counters! {
+    /// What the learner did, counted since construction.
+    pub struct LearnerCounters {
+        /// Frames given to the model (one `observe` call each).
+        frames,
+        /// Of them learned as observations of the gear error.
+        learned,
+        /// Not learned: silence, dithers and bumps and the frames settling
+        /// after one (passed as unmeasured), and frames the model refused (a bad
+        /// observation or time, counted in its `Faults`).
+        not_learned,
+        /// Dithers the model was told about.
+        dithers,
+        /// Steps of the star taken out of the observations (`bump`).
+        bumps,
+    }
 }
 
 /// The slow part: the model. Call [`learn`](Self::learn) once per frame

@@ -68,14 +68,15 @@ pub const BUFFER_LEN: usize = (KEY_LEN + ENVELOPE_LEN + MODEL_RECORD_MAX).next_m
 /// few spoilt words without filling the page with failed copies.
 pub const SAVE_ATTEMPTS: u32 = 3;
 
-/// What the store's saves met, counted since it was opened.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct StoreCounters {
-    /// Writes that read back unlike what was written, and were written
-    /// again (or, the last, reported unverified).
-    pub rewrites: u32,
-    /// Saves reported [`SaveError::Unverified`].
-    pub unverified: u32,
+crate::counters! {
+    /// What the store's saves met, counted since it was opened.
+    pub struct StoreCounters("store_") {
+        /// Writes that read back unlike what was written, and were written
+        /// again (or, the last, reported unverified).
+        rewrites,
+        /// Saves reported [`SaveError::Unverified`].
+        unverified,
+    }
 }
 
 /// The flash errors a store operation can meet: the flash's own, the gate's

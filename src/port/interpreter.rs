@@ -7,63 +7,44 @@
 use super::command::{parse, Command, Own, Query, Refusal, Setting, SlewRate};
 use super::coords::{Equatorial, Precision};
 use super::framer::{Frame, Framer, FramerCounters};
-use super::mount_port::{Axis, Counter, GuidePulse, MountPort, PecState};
+use super::mount_port::{Axis, GuidePulse, MountPort, PecState};
 use super::own;
 use super::reply::{Reply, ReplySink};
 use super::site::Site;
 use super::telemetry::{self, TelemetryFrame};
 
-/// What the port received and refused, since start-up (wrapping counts).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct PortCounters {
-    /// Commands understood and carried out.
-    pub commands: u32,
-    /// ACK bytes answered.
-    pub acks: u32,
-    /// Bytes outside any command, and of commands abandoned at a control
-    /// byte.
-    pub garbage_bytes: u32,
-    /// Commands longer than the framer's buffer.
-    pub overflows: u32,
-    /// Commands not ended in time.
-    pub timeouts: u32,
-    /// Complete commands we do not know.
-    pub unknown: u32,
-    /// Known commands with a malformed or out-of-range value.
-    pub bad_values: u32,
-    /// Replies cut because they did not fit (none should be: a bug).
-    pub replies_cut: u32,
-    /// Replies and telemetry lines the transport had no room for.
-    pub replies_dropped: u32,
-    /// Saves asked (`:~W#`, `:~KW#`) whose outcome did not come within
-    /// [`STORE_REPLY_TIMEOUT_US`]: answered `0`.
-    pub store_timeouts: u32,
+crate::counters! {
+    /// What the port received and refused, since start-up (wrapping counts).
+    pub struct PortCounters {
+        /// Commands understood and carried out.
+        commands,
+        /// ACK bytes answered.
+        acks,
+        /// Bytes outside any command, and of commands abandoned at a control
+        /// byte.
+        garbage_bytes,
+        /// Commands longer than the framer's buffer.
+        overflows,
+        /// Commands not ended in time.
+        timeouts,
+        /// Complete commands we do not know.
+        unknown,
+        /// Known commands with a malformed or out-of-range value.
+        bad_values,
+        /// Replies cut because they did not fit (none should be: a bug).
+        replies_cut,
+        /// Replies and telemetry lines the transport had no room for.
+        replies_dropped,
+        /// Saves asked (`:~W#`, `:~KW#`) whose outcome did not come within
+        /// [`STORE_REPLY_TIMEOUT_US`]: answered `0`.
+        store_timeouts,
+    }
 }
 
 /// How long a save's reply waits for the store's outcome. A save reads
 /// both pages twice and may erase a sector (1-2 s); beyond this the store
 /// is taken to have failed and the client hears `0`.
 pub const STORE_REPLY_TIMEOUT_US: u64 = 20_000_000;
-
-impl PortCounters {
-    /// Counter `index` by name, for `:~Cp#`.
-    pub fn get(&self, index: usize) -> Option<Counter> {
-        let (name, value) = match index {
-            0 => ("commands", self.commands),
-            1 => ("acks", self.acks),
-            2 => ("garbage_bytes", self.garbage_bytes),
-            3 => ("overflows", self.overflows),
-            4 => ("timeouts", self.timeouts),
-            5 => ("unknown", self.unknown),
-            6 => ("bad_values", self.bad_values),
-            7 => ("replies_cut", self.replies_cut),
-            8 => ("replies_dropped", self.replies_dropped),
-            9 => ("store_timeouts", self.store_timeouts),
-            _ => return None,
-        };
-        Some(Counter { name, value })
-    }
-}
 
 /// The interpreter's state besides the framer: what the client chose.
 #[derive(Clone, Debug)]

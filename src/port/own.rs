@@ -7,6 +7,7 @@ use super::config_value;
 use super::interpreter::PortCounters;
 use super::mount_port::{Counter, MountPort};
 use super::reply::{Reply, LIST_END_ROOM};
+use crate::counters::Counters as _;
 use crate::mount::config::{ConfigError, Field, MountConfig};
 
 /// The most stages `:~L#` counts (`:~S<n>#` takes one digit).
@@ -51,7 +52,7 @@ pub fn carry_out(
         }
         Own::Counters { group, start } => {
             let counter = |i| match group {
-                Counters::Port => port.get(i),
+                Counters::Port => port.get(i).map(|(name, value)| Counter { name, value }),
                 Counters::Mount(group) => mount.counter(group, i),
             };
             list(start, counter, reply);

@@ -135,45 +135,46 @@ pub const FADE_FRAMES: u32 = 5;
 /// far behind the oldest is dropped (counted in `frames_dropped`).
 pub const FRAME_QUEUE: usize = 4;
 
-/// What the fast part saw and did, counted since construction.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct GuidingCounters {
-    /// Pulse starts per axis.
-    pub ra_pulses: u32,
-    pub dec_pulses: u32,
-    /// Frames made (all kinds), and of them: filled by the cadence, not
-    /// measured (in silence, while the port moved the axis, during a
-    /// calibration), dithers.
-    pub frames: u32,
-    pub filled_frames: u32,
-    pub unmeasured_frames: u32,
-    pub dithers: u32,
-    /// Times learning froze because the guider fell silent, and because
-    /// its RA pulses ran back to back (`framer`).
-    pub silences: u32,
-    pub backlogs: u32,
-    /// Calibrations recognised from the guider's pulses (`calibration`).
-    pub calibrations: u32,
-    /// Times the feed-forward was faded out completely after a silence.
-    pub feed_forward_faded: u32,
-    /// Feed-forwards refused (non-finite) or limited to the guide rate.
-    pub feed_forward_rejected: u32,
-    pub feed_forward_limited: u32,
-    /// Feed-forwards that ran out (no newer one by `until_gear_s`).
-    pub feed_forward_expired: u32,
-    /// Frames dropped because the learner was [`FRAME_QUEUE`] behind.
-    pub frames_dropped: u32,
-    /// `rates` calls whose RA or Dec rate had to be clamped into range.
-    pub ra_clamped: u32,
-    pub dec_clamped: u32,
-    /// `rates` calls with a time earlier than the previous one (ignored).
-    pub time_backwards: u32,
-    /// Pulse ends for an axis without a pulse (ignored).
-    pub stray_ends: u32,
-    /// RA pulses carried out in part (`damping`), and of those that
-    /// started so, the ones that turned out long and were made up in full.
-    pub ra_pulses_held_back: u32,
-    pub ra_pulses_made_up: u32,
+crate::counters! {
+    /// What the fast part saw and did, counted since construction.
+    pub struct GuidingCounters {
+        /// Pulse starts per axis.
+        ra_pulses,
+        dec_pulses,
+        /// Frames made (all kinds), and of them: filled by the cadence, not
+        /// measured (in silence, while the port moved the axis, during a
+        /// calibration), dithers.
+        frames,
+        filled_frames,
+        unmeasured_frames,
+        dithers,
+        /// Times learning froze because the guider fell silent, and because
+        /// its RA pulses ran back to back (`framer`).
+        silences,
+        backlogs,
+        /// Calibrations recognised from the guider's pulses (`calibration`).
+        calibrations,
+        /// Times the feed-forward was faded out completely after a silence.
+        feed_forward_faded,
+        /// Feed-forwards refused (non-finite) or limited to the guide rate.
+        feed_forward_rejected,
+        feed_forward_limited,
+        /// Feed-forwards that ran out (no newer one by `until_gear_s`).
+        feed_forward_expired,
+        /// Frames dropped because the learner was [`FRAME_QUEUE`] behind.
+        frames_dropped,
+        /// `rates` calls whose RA or Dec rate had to be clamped into range.
+        ra_clamped,
+        dec_clamped,
+        /// `rates` calls with a time earlier than the previous one (ignored).
+        time_backwards,
+        /// Pulse ends for an axis without a pulse (ignored).
+        stray_ends,
+        /// RA pulses carried out in part (`damping`), and of those that
+        /// started so, the ones that turned out long and were made up in full.
+        ra_pulses_held_back,
+        ra_pulses_made_up,
+    }
 }
 
 /// The motion the command port asks for besides guide pulses: tracking on

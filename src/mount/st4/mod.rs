@@ -143,21 +143,22 @@ pub enum St4Event {
     PulseEnd { axis: Axis, at_us: u64 },
 }
 
-/// What went wrong on the lines, since start-up (wrapping counts).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct St4Counters {
-    /// Level changes undone within `glitch_us` (ignored).
-    pub glitches: u32,
-    /// Episodes of both lines of an axis asserted.
-    pub both_lines: u32,
-    /// Pulses cut at the cap.
-    pub capped: u32,
-    /// Lines still asserted at the cap (each counted once until released).
-    pub stuck: u32,
-    /// Edges older than the previous edge (ignored).
-    pub out_of_order: u32,
-    /// Events dropped from the full queue (the oldest first).
-    pub dropped: u32,
+crate::counters! {
+    /// What went wrong on the lines, since start-up (wrapping counts).
+    pub struct St4Counters {
+        /// Level changes undone within `glitch_us` (ignored).
+        glitches,
+        /// Episodes of both lines of an axis asserted.
+        both_lines,
+        /// Pulses cut at the cap.
+        capped,
+        /// Lines still asserted at the cap (each counted once until released).
+        stuck,
+        /// Edges older than the previous edge (ignored).
+        out_of_order,
+        /// Events dropped from the full queue (the oldest first).
+        dropped,
+    }
 }
 
 /// Capacity of the event queue.
