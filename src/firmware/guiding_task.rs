@@ -5,39 +5,33 @@
 //! `Interpreter` on the loop (`PortMount`), and each learned frame's
 //! telemetry line to the ports that asked for it.
 
-use core::cell::{Cell, RefCell};
+use core::cell::Cell;
 
 use embassy_executor::InterruptExecutor;
 use embassy_futures::select::{select3, Either3};
 use embassy_stm32::interrupt;
-use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
-use embassy_sync::blocking_mutex::Mutex;
-use embassy_sync::channel::Channel;
-use embassy_sync::signal::Signal;
 use embassy_time::{Instant, Timer};
 
 use hal::reset::Watchdog;
 use hal::st4::{PinEdge, St4Edges};
-use mkgp_mount::control_loop::port_mount::{
-    LearnedFrame, PortMount, PortState, StoreOutcome, StoreRequest,
-};
+use mkgp_mount::control_loop::port_mount::{LearnedFrame, PortMount, PortState};
 use mkgp_mount::control_loop::st4_feed::{EdgeQueue, EdgeSource, RawEdge};
-use mkgp_mount::control_loop::storm::StormGuard;
-use mkgp_mount::control_loop::{ControlLoop, FrameRecord};
+use mkgp_mount::control_loop::ControlLoop;
 use mkgp_mount::mount::config::Mount;
-use mkgp_mount::mount::guiding::FRAME_QUEUE;
-use mkgp_mount::mount::st4::{Line, St4Counters};
-use mkgp_mount::persist::StoreCounters;
-use mkgp_mount::port::mount_port::{Identity, ModelOrigin, StepCounts};
+use mkgp_mount::mount::st4::Line;
+use mkgp_mount::port::mount_port::{Identity, StepCounts};
 use mkgp_mount::port::Interpreter;
 use mkgp_mount::safety::fault_record::FaultRecord;
 use mkgp_mount::safety::liveness::{Liveness, Progress, Verdict};
 use mkgp_mount::safety::reset_cause::ResetCause;
 
 use crate::firmware::fault::enter_safe_state;
-use crate::firmware::learning_task::frames_learned;
 use crate::firmware::log;
-use crate::firmware::port_io::{LinkSink, CHUNK, LINKS, PORTS, RECEIVED};
+use crate::firmware::port_io::{LinkSink, CHUNK, LINKS};
+use crate::firmware::shared::{
+    frames_learned, StoreDone, FRAMES, INDEX_EDGE, LEARNED, MODEL_ORIGIN, PORTS, RECEIVED,
+    RESET_MODEL, ST4_COUNTERS, STORE_REQUESTS, STORM,
+};
 use crate::firmware::step_tick::{self, set_rates, step_counts};
 
 pub static EXECUTOR_HIGH: InterruptExecutor = InterruptExecutor::new();
@@ -49,84 +43,6 @@ unsafe fn SDIO() {
     // SAFETY: the executor was started on this vector before it was enabled.
     unsafe { EXECUTOR_HIGH.on_interrupt() }
 }
-
-/// The ST4 counters, for the status log.
-pub static ST4_COUNTERS: Mutex<CriticalSectionRawMutex, Cell<Option<St4Counters>>> =
-    Mutex::new(Cell::new(None));
-
-/// Guide frames, from the guiding task to the learning task. The loop keeps
-/// the frames there is no room for here, and drops its oldest when the
-/// learner falls further behind (counted).
-pub static FRAMES: Channel<CriticalSectionRawMutex, FrameRecord, FRAME_QUEUE> = Channel::new();
-
-/// The newest learned frame with its feed-forward, from the learning task
-/// to the guiding task (an older one not yet taken is replaced).
-pub static LEARNED: Signal<CriticalSectionRawMutex, LearnedFrame> = Signal::new();
-
-/// A model reset asked on a command port, for the learning task.
-pub static RESET_MODEL: Signal<CriticalSectionRawMutex, ()> = Signal::new();
-
-/// What the ports asked of the store, for the learning task (which owns
-/// it).
-pub static STORE_REQUESTS: Channel<CriticalSectionRawMutex, StoreRequest, 4> = Channel::new();
-
-/// What became of the store's saves, from the learning task: each port's
-/// outcome waiting for its reply, and the store's newest counters. A cell,
-/// not a queue: a port has one save at a time, and only the newest
-/// counters matter (a `Cell` of `Copy` values also brings no panic path).
-pub static STORE_DONE: Mutex<CriticalSectionRawMutex, Cell<StoreDone>> =
-    Mutex::new(Cell::new(StoreDone {
-        replies: [None; PORTS],
-        counters: StoreCounters {
-            rewrites: 0,
-            unverified: 0,
-        },
-    }));
-
-/// See [`STORE_DONE`].
-#[derive(Clone, Copy)]
-pub struct StoreDone {
-    /// Per port: saved (`true`) or not, waiting for its reply.
-    pub replies: [Option<bool>; PORTS],
-    pub counters: StoreCounters,
-}
-
-impl StoreDone {
-    /// The learning task's side: `outcome` for the port that asked, and
-    /// the counters.
-    pub fn report(outcome: StoreOutcome) {
-        STORE_DONE.lock(|cell| {
-            let mut done = cell.get();
-            if let Some(reply) = outcome.reply_to.and_then(|p| done.replies.get_mut(p)) {
-                *reply = Some(outcome.saved);
-            }
-            done.counters = outcome.counters;
-            cell.set(done);
-        });
-    }
-
-    /// The guiding task's side: the outcomes waiting (taken) and the
-    /// counters.
-    fn take() -> StoreDone {
-        STORE_DONE.lock(|cell| {
-            let done = cell.get();
-            cell.set(StoreDone {
-                replies: [None; PORTS],
-                ..done
-            });
-            done
-        })
-    }
-}
-
-/// Where the model came from, set by the learning task when it restores
-/// it (at start-up, or at the worm index's first pass).
-pub static MODEL_ORIGIN: Mutex<CriticalSectionRawMutex, Cell<ModelOrigin>> =
-    Mutex::new(Cell::new(ModelOrigin::Cold));
-
-/// The RA step count at the worm-index sensor's latest edge, for the
-/// learning task.
-pub static INDEX_EDGE: Signal<CriticalSectionRawMutex, i64> = Signal::new();
 
 /// Reports each edge of the worm-index sensor with the RA step count then
 /// (on the high-priority executor: the count is taken within microseconds
@@ -152,13 +68,6 @@ const IDENTITY: Identity = Identity {
 /// in its pipe, and the edges and rates are never late for it.
 const RX_PER_WAKE: usize = 4 * CHUNK;
 
-/// The ST4 edge budgets: asked by the EXTI interrupt before it queues an
-/// edge, polled by the guiding task for masked lines. Borrowed only inside
-/// its lock and never across one, so a borrow cannot fail: `try_borrow*`
-/// keeps the borrow panics out of the firmware.
-static STORM: Mutex<CriticalSectionRawMutex, RefCell<StormGuard>> =
-    Mutex::new(RefCell::new(StormGuard::new()));
-
 /// The hal numbers its inputs in the order of `Line::ALL`.
 fn line(index: u8) -> Line {
     Line::ALL[usize::from(index) % Line::ALL.len()]
@@ -170,11 +79,6 @@ pub fn allow_edge(index: u8, at_us: u64) -> bool {
         g.try_borrow_mut()
             .is_ok_and(|mut g| g.on_edge(line(index), at_us))
     })
-}
-
-/// ST4 edge storms caught since start, for the status log.
-pub fn storms() -> u32 {
-    STORM.lock(|g| g.try_borrow().map_or(0, |g| g.storms()))
 }
 
 /// Unmasks each masked input that the storm guard finds quiet.

@@ -1,7 +1,7 @@
 //! The learning task, in thread mode below everything else: runs the model
 //! once per guide frame and signals the feed-forward to the guiding task.
 
-use core::sync::atomic::{AtomicU32, Ordering};
+use core::sync::atomic::Ordering;
 
 use static_cell::StaticCell;
 
@@ -15,11 +15,11 @@ use embassy_futures::select::{select3, Either3};
 use embassy_time::{Duration, Instant};
 use mkgp_mount::persist::{Erase, StoreCounters};
 
-use crate::firmware::guiding_task::{
-    StoreDone, FRAMES, INDEX_EDGE, LEARNED, MODEL_ORIGIN, RESET_MODEL, STORE_REQUESTS,
-};
 use crate::firmware::log;
-use crate::firmware::port_io::RECEIVED;
+use crate::firmware::shared::{
+    StoreDone, FRAMES, FRAMES_LEARNED, INDEX_EDGE, LEARNED, MODEL_ORIGIN, RECEIVED, RESET_MODEL,
+    STORE_REQUESTS,
+};
 use crate::firmware::storage::{self, FirmwareStore, SnapshotBuffer};
 use crate::STAGES;
 
@@ -41,13 +41,6 @@ pub struct Storage {
 
 /// The model's storage: a static, handed out once.
 static LEARNER: StaticCell<Learner<STAGES>> = StaticCell::new();
-
-/// Frames learned so far (wrapping), for the liveness check.
-static FRAMES_LEARNED: AtomicU32 = AtomicU32::new(0);
-
-pub fn frames_learned() -> u32 {
-    FRAMES_LEARNED.load(Ordering::Relaxed)
-}
 
 /// Builds the model in [`LEARNER`], in place (`Learner::init`: no
 /// temporary copy on the stack). Not inlined, so that its stack frame is

@@ -10,8 +10,8 @@ use mkgp_mount::mount::frame::{FeedForward, FrameKind};
 use mkgp_mount::mount::learner::Learner;
 use mkgp_mount::mount::st4::{Axis, Direction, St4Event};
 
-use crate::firmware::guiding_task::{storms, ST4_COUNTERS};
 use crate::firmware::port_io::LINKS;
+use crate::firmware::shared::{storms, ST4_COUNTERS};
 use crate::firmware::step_tick::{rates_set, step_counts};
 use crate::STAGES;
 

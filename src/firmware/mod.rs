@@ -6,5 +6,6 @@ pub mod guiding_task;
 pub mod learning_task;
 pub mod log;
 pub mod port_io;
+pub mod shared;
 pub mod step_tick;
 pub mod storage;

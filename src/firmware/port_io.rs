@@ -9,7 +9,7 @@
 //! bytes are lost). A reply that finds no room in the transmit pipe is
 //! dropped whole and counted by the interpreter (`replies_dropped`).
 //!
-//! RAM: [`PORTS`] x ([`RX_PIPE`] + [`TX_PIPE`]) bytes of pipes, and each
+//! RAM: [`PORTS`](crate::firmware::shared::PORTS) x ([`RX_PIPE`] + [`TX_PIPE`]) bytes of pipes, and each
 //! relay's [`CHUNK`]-byte buffers in its task.
 
 use core::sync::atomic::{AtomicU32, Ordering};
@@ -17,14 +17,12 @@ use core::sync::atomic::{AtomicU32, Ordering};
 use embassy_futures::join::join;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::pipe::Pipe;
-use embassy_sync::signal::Signal;
 use embedded_io_async::{Read, Write};
 
 use mkgp_mount::port::ReplySink;
 
-/// Command ports on every board: 0 to the PC (USB, or the Nucleo's
-/// ST-LINK), 1 a plain UART.
-pub const PORTS: usize = 2;
+use crate::firmware::shared::{PORTS, RECEIVED};
+
 /// Bytes received and not yet interpreted, per port: INDI's connect burst
 /// (about 150 bytes) fits.
 pub const RX_PIPE: usize = 256;
@@ -62,9 +60,6 @@ impl Link {
 }
 
 pub static LINKS: [Link; PORTS] = [Link::new(), Link::new()];
-
-/// Bytes arrived on a port: wakes the guiding task.
-pub static RECEIVED: Signal<CriticalSectionRawMutex, ()> = Signal::new();
 
 /// Replies into a link's transmit pipe: whole, or dropped.
 pub struct LinkSink(pub &'static Link);
