@@ -20,7 +20,6 @@ use crate::mount::frame::{FeedForward, Frame, FrameKind};
 use crate::mount::guiding::bump::{self, Bump};
 use crate::mount::guiding::damping::{Damping, SavedShare, SAVED_LEN};
 use crate::mount::guiding::pulse_weight::PulseWeight;
-use crate::persist::MODEL_RECORD_MAX;
 
 /// Periodic stages of the firmware's model (the worm and two more), and of
 /// the simulators that stand for it. Chosen by measurement: the same as two
@@ -50,8 +49,9 @@ const _: () = assert!(FORMAT_VERSION == 1);
 /// configuration describes another worm, and the model learns that one
 /// from its prior.
 pub const WORM_PERIOD_CHANGE: f32 = 0.01;
-// The firmware's snapshot fits the buffers sized for it and the store's record.
-const _: () = assert!(FIRMWARE_STAGES <= SNAPSHOT_MAX_STAGES && RECORD_MAX <= MODEL_RECORD_MAX);
+// The firmware's snapshot fits the buffers sized for it (and the store's
+// record: `persist`).
+const _: () = assert!(FIRMWARE_STAGES <= SNAPSHOT_MAX_STAGES);
 
 /// The model's blend weight from which its feed-forward counts as trusted
 /// in full, and pulse damping may be earned.

@@ -49,3 +49,5 @@ pub use store::{LoadError, SaveError, Store, StoreCounters};
 /// The largest model snapshot the store takes, in bytes. The store's buffer
 /// holds one record of this size ([`store::BUFFER_LEN`], 8224 bytes of RAM).
 pub const MODEL_RECORD_MAX: usize = 8192;
+// The learner's largest record fits it.
+const _: () = assert!(crate::mount::learner::RECORD_MAX <= MODEL_RECORD_MAX);

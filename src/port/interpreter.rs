@@ -12,34 +12,7 @@ use super::own;
 use super::reply::{Reply, ReplySink};
 use super::site::Site;
 use super::telemetry::{self, TelemetryFrame};
-
-crate::counters! {
-    /// What the port received and refused, since start-up (wrapping counts).
-    pub struct PortCounters {
-        /// Commands understood and carried out.
-        commands,
-        /// ACK bytes answered.
-        acks,
-        /// Bytes outside any command, and of commands abandoned at a control
-        /// byte.
-        garbage_bytes,
-        /// Commands longer than the framer's buffer.
-        overflows,
-        /// Commands not ended in time.
-        timeouts,
-        /// Complete commands we do not know.
-        unknown,
-        /// Known commands with a malformed or out-of-range value.
-        bad_values,
-        /// Replies cut because they did not fit (none should be: a bug).
-        replies_cut,
-        /// Replies and telemetry lines the transport had no room for.
-        replies_dropped,
-        /// Saves asked (`:~W#`, `:~KW#`) whose outcome did not come within
-        /// [`STORE_REPLY_TIMEOUT_US`]: answered `0`.
-        store_timeouts,
-    }
-}
+use super::PortCounters;
 
 /// How long a save's reply waits for the store's outcome. A save reads
 /// both pages twice and may erase a sector (1-2 s); beyond this the store

@@ -32,9 +32,38 @@ pub mod site;
 pub mod telemetry;
 
 pub use command::Command;
-pub use interpreter::{Interpreter, PortCounters};
+pub use interpreter::Interpreter;
 pub use mount_port::MountPort;
 pub use reply::ReplySink;
 
 #[cfg(test)]
 mod tests;
+
+// Here, not in `interpreter` which counts them: `own` lists them too.
+crate::counters! {
+    /// What the port received and refused, since start-up (wrapping counts).
+    pub struct PortCounters {
+        /// Commands understood and carried out.
+        commands,
+        /// ACK bytes answered.
+        acks,
+        /// Bytes outside any command, and of commands abandoned at a control
+        /// byte.
+        garbage_bytes,
+        /// Commands longer than the framer's buffer.
+        overflows,
+        /// Commands not ended in time.
+        timeouts,
+        /// Complete commands we do not know.
+        unknown,
+        /// Known commands with a malformed or out-of-range value.
+        bad_values,
+        /// Replies cut because they did not fit (none should be: a bug).
+        replies_cut,
+        /// Replies and telemetry lines the transport had no room for.
+        replies_dropped,
+        /// Saves asked (`:~W#`, `:~KW#`) whose outcome did not come within
+        /// [`interpreter::STORE_REPLY_TIMEOUT_US`]: answered `0`.
+        store_timeouts,
+    }
+}

@@ -4,9 +4,9 @@
 
 use super::command::{Counters, Own};
 use super::config_value;
-use super::interpreter::PortCounters;
 use super::mount_port::{Counter, MountPort};
 use super::reply::{Reply, LIST_END_ROOM};
+use super::PortCounters;
 use crate::counters::Counters as _;
 use crate::mount::config::{ConfigError, Field, MountConfig};
 

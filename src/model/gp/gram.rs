@@ -1,7 +1,7 @@
 //! The subset's Gram matrix `K + diag(variance)`, from the lag table.
 
 use crate::model::gp::grid::{Grid, GRID_CELLS};
-use crate::model::gp::infer::{SUBSET, TRIANGLE};
+use crate::model::gp::{SUBSET, TRIANGLE};
 use crate::model::ldlt::Ldlt;
 use crate::model::numeric::scalar::Scalar;
 

@@ -17,24 +17,10 @@ use crate::model::gp::grid::{Grid, CELL_S};
 use crate::model::gp::kernel::Kernel;
 use crate::model::gp::subset::Subset;
 use crate::model::gp::trend::Trend;
-use crate::model::gp::{gram, lag_table};
+use crate::model::gp::{gram, lag_table, InferError, SUBSET, TRIANGLE};
 use crate::model::in_place::{build, fill, uninit_field};
-use crate::model::ldlt::{FactorError, Ldlt};
+use crate::model::ldlt::Ldlt;
 use crate::model::numeric::scalar::Scalar;
-
-/// Cells used for one inference.
-pub const SUBSET: usize = 100;
-pub(super) const TRIANGLE: usize = SUBSET * (SUBSET + 1) / 2;
-
-/// Why an inference could not be made.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum InferError {
-    /// Fewer than two cells.
-    TooLittleData,
-    Factor(FactorError),
-    /// The trend system was singular or a result was not finite.
-    Degenerate,
-}
 
 /// Inference state. RAM: the packed Gram factor (5,050 scalars, 20,200 bytes
 /// in `f32`), four vectors of [`SUBSET`] scalars and the subset's cell

@@ -4,8 +4,8 @@
 //! Gram entry.
 
 use crate::model::gp::grid::{CELL_S, GRID_CELLS};
-use crate::model::gp::infer::SUBSET;
 use crate::model::gp::kernel::Kernel;
+use crate::model::gp::SUBSET;
 use crate::model::numeric::scalar::Scalar;
 
 /// Fill `scratch[m]` with the full kernel at `m` cells for every lag `m`

@@ -5,8 +5,8 @@ use core::cell::Cell;
 use core::cmp::Ordering;
 
 use crate::model::gp::grid::{Grid, CELL_S};
-use crate::model::gp::infer::SUBSET;
 use crate::model::gp::kernel::Kernel;
+use crate::model::gp::SUBSET;
 use crate::model::numeric::scalar::Scalar;
 
 /// The members of one inference: held-cell indices, ascending.

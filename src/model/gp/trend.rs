@@ -8,7 +8,7 @@
 //! choice, but `f32` does.
 
 use crate::model::gp::grid::{Grid, CELL_S};
-use crate::model::gp::infer::{InferError, SUBSET, TRIANGLE};
+use crate::model::gp::{InferError, SUBSET, TRIANGLE};
 use crate::model::ldlt::Ldlt;
 use crate::model::numeric::dot::dot;
 use crate::model::numeric::scalar::Scalar;

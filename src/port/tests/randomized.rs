@@ -13,9 +13,9 @@
 
 use super::double::{Call, DoubleMount};
 use crate::port::framer::{ACK, COMMAND_CAPACITY, COMMAND_TIMEOUT_US};
-use crate::port::interpreter::{Interpreter, PortCounters};
 use crate::port::mount_port::GuidePulse;
 use crate::port::reply::{ReplySink, REPLY_CAPACITY};
+use crate::port::{Interpreter, PortCounters};
 use crate::testing::SplitMix64;
 use std::vec::Vec;
 
