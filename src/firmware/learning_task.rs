@@ -92,7 +92,7 @@ pub async fn learning_task(learner: &'static mut Learner<STAGES>, mut storage: O
                 let outcome = match storage.as_mut() {
                     Some(s) => {
                         let pass = s.index.last_pass();
-                        storage::carry_out(s.store, learner, s.buf, request, pass).await
+                        storage::serve(s.store, learner, s.buf, request, pass).await
                     }
                     // Not asked without a store (`PortState::store`).
                     None => StoreOutcome {

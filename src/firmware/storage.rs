@@ -261,8 +261,8 @@ pub async fn save_model(
     }
 }
 
-/// Carries out what a port asked of the store; what became of it.
-pub async fn carry_out(
+/// Serves what a port asked of the store; what became of it.
+pub async fn serve(
     store: &mut FirmwareStore,
     learner: &Learner<STAGES>,
     buf: &mut SnapshotBuffer,

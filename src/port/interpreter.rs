@@ -6,7 +6,7 @@
 
 use super::command::{parse, Command, Own, Query, Refusal, Setting, SlewRate};
 use super::coords::{Equatorial, Precision};
-use super::framer::{Frame, Framer, FramerCounters};
+use super::lexer::{Lexer, LexerCounters, Token};
 use super::mount_port::{Axis, GuidePulse, MountPort, PecState};
 use super::own;
 use super::reply::{Reply, ReplySink};
@@ -19,7 +19,7 @@ use super::PortCounters;
 /// is taken to have failed and the client hears `0`.
 pub const STORE_REPLY_TIMEOUT_US: u64 = 20_000_000;
 
-/// The interpreter's state besides the framer: what the client chose.
+/// The interpreter's state besides the lexer: what the client chose.
 #[derive(Clone, Debug)]
 struct Session {
     precision: Precision,
@@ -31,15 +31,15 @@ struct Session {
     /// A save asked on this port whose reply waits for the store's
     /// outcome ([`Interpreter::store_done`]), until this time.
     store_reply_due_us: Option<u64>,
-    /// The counters the framer does not keep.
+    /// The counters the lexer does not keep.
     counters: PortCounters,
 }
 
-/// One port's interpreter: 184 bytes on x86-64, its framer's buffer
+/// One port's interpreter: 184 bytes on x86-64, its lexer's buffer
 /// included (the unit test `size` bounds it at 192).
 #[derive(Clone, Debug)]
 pub struct Interpreter {
-    framer: Framer,
+    lexer: Lexer,
     session: Session,
 }
 
@@ -54,7 +54,7 @@ impl Interpreter {
     /// slowest: a `:Mn#` before any `:R?#` is a guide pulse), telemetry off.
     pub fn new() -> Self {
         Interpreter {
-            framer: Framer::new(),
+            lexer: Lexer::new(),
             session: Session {
                 precision: Precision::High,
                 rate: SlewRate::Guide,
@@ -77,7 +77,7 @@ impl Interpreter {
         mount: &mut impl MountPort,
         out: &mut impl ReplySink,
     ) {
-        self.framer.expire(now_us);
+        self.lexer.expire(now_us);
         if self
             .session
             .store_reply_due_us
@@ -89,18 +89,18 @@ impl Interpreter {
             self.session.sent(out.send(b"0"));
         }
         for &byte in bytes {
-            // Before the byte: a command's `#` changes no framer counter, and
-            // the frame borrows the framer.
-            let framer_counters = self.framer.counters();
-            match self.framer.push(byte, now_us) {
+            // Before the byte: a command's `#` changes no lexer counter, and
+            // the frame borrows the lexer.
+            let lexer_counters = self.lexer.counters();
+            match self.lexer.push(byte, now_us) {
                 None => {}
-                Some(Frame::Ack) => {
+                Some(Token::Ack) => {
                     // Polar: an equatorial mount (Meade's `A` is alt-az).
                     self.session.sent(out.send(b"P"));
                     self.session.counters.acks = self.session.counters.acks.wrapping_add(1);
                 }
-                Some(Frame::Command(body)) => {
-                    let port = self.session.counters_now(framer_counters);
+                Some(Token::Command(body)) => {
+                    let port = self.session.counters_now(lexer_counters);
                     self.session.execute(body, now_us, port, mount, out)
                 }
             }
@@ -108,7 +108,7 @@ impl Interpreter {
     }
 
     pub fn counters(&self) -> PortCounters {
-        self.session.counters_now(self.framer.counters())
+        self.session.counters_now(self.lexer.counters())
     }
 
     /// The store's outcome of the save this port asked for: `1` saved (read
@@ -147,12 +147,12 @@ impl Session {
             self.counters.replies_dropped = self.counters.replies_dropped.wrapping_add(1);
         }
     }
-    /// The port's counters, the framer's included.
-    fn counters_now(&self, framer: FramerCounters) -> PortCounters {
+    /// The port's counters, the lexer's included.
+    fn counters_now(&self, lexer: LexerCounters) -> PortCounters {
         PortCounters {
-            garbage_bytes: framer.garbage_bytes,
-            overflows: framer.overflows,
-            timeouts: framer.timeouts,
+            garbage_bytes: lexer.garbage_bytes,
+            overflows: lexer.overflows,
+            timeouts: lexer.timeouts,
             ..self.counters
         }
     }
@@ -240,7 +240,7 @@ impl Session {
             Command::Own(Own::ConfigSave) => self.ask_store(now_us, reply, || mount.save_config()),
             Command::Own(Own::SaveModel) => self.ask_store(now_us, reply, || mount.save_model()),
             Command::Own(command) => {
-                if let Some(on) = own::carry_out(command, port, mount, reply) {
+                if let Some(on) = own::answer(command, port, mount, reply) {
                     self.telemetry = on;
                 }
             }

@@ -3,7 +3,7 @@
 //! it (the facts in docs/reference.md section 5), plus a namespace of our
 //! own (`:~...#`); the command list with every reply is docs/port.md.
 //!
-//! - [`framer`]: bytes to `:...#` frames and the ACK byte, garbage counted.
+//! - [`lexer`]: bytes to `:...#` commands and the ACK byte, garbage counted.
 //! - [`sexagesimal`], [`coords`], [`site`]: the numbers in commands and
 //!   replies, range-checked, in integer units.
 //! - [`command`]: a frame's body to a [`Command`], or a counted refusal.
@@ -14,16 +14,16 @@
 //!   [`config_value`]: configuration values as text.
 //! - [`reply`]: the bounded reply buffer and the [`ReplySink`] trait.
 //!
-//! RAM: an [`Interpreter`] per port (its framer's
-//! [`framer::COMMAND_CAPACITY`] bytes and some state), and a
+//! RAM: an [`Interpreter`] per port (its lexer's
+//! [`lexer::COMMAND_CAPACITY`] bytes and some state), and a
 //! [`reply::REPLY_CAPACITY`]-byte reply on the stack while a command is
 //! answered.
 
 pub mod command;
 pub mod config_value;
 pub mod coords;
-pub mod framer;
 pub mod interpreter;
+pub mod lexer;
 pub mod mount_port;
 pub mod own;
 pub mod reply;
@@ -50,7 +50,7 @@ crate::counters! {
         /// Bytes outside any command, and of commands abandoned at a control
         /// byte.
         garbage_bytes,
-        /// Commands longer than the framer's buffer.
+        /// Commands longer than the lexer's buffer.
         overflows,
         /// Commands not ended in time.
         timeouts,

@@ -13,9 +13,9 @@ use crate::mount::config::{ConfigError, Field, MountConfig};
 /// The most stages `:~L#` counts (`:~S<n>#` takes one digit).
 const MAX_STAGES: usize = 10;
 
-/// Carries out `command`, writing its reply. Returns the telemetry switch
+/// Answers our own `command` (carrying it out), writing its reply. Returns the telemetry switch
 /// if the command set it (the interpreter keeps it, per port).
-pub fn carry_out(
+pub fn answer(
     command: Own,
     port: PortCounters,
     mount: &mut impl MountPort,

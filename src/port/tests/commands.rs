@@ -4,8 +4,8 @@ use super::double::{Bench, Call};
 use crate::mount::config::{Field, MountConfig};
 use crate::mount::learner::FIRMWARE_STAGES;
 use crate::port::coords::{Dec, Equatorial, Ra};
-use crate::port::framer::{COMMAND_CAPACITY, COMMAND_TIMEOUT_US};
 use crate::port::interpreter::{Interpreter, STORE_REPLY_TIMEOUT_US};
+use crate::port::lexer::{COMMAND_CAPACITY, COMMAND_TIMEOUT_US};
 use crate::port::mount_port::{Axis, GuidePulse, Line, ManualRate, PecState, Stage};
 use crate::port::telemetry::TelemetryFrame;
 use crate::port::ReplySink;
@@ -514,7 +514,7 @@ fn unknown_commands_are_silent_and_counted() {
 
 #[test]
 fn size() {
-    // The framer's buffer and the session: a port costs this much RAM.
+    // The lexer's buffer and the session: a port costs this much RAM.
     let size = core::mem::size_of::<Interpreter>();
     assert!(size <= 192, "{size}");
     // And the reply on the stack while a command is answered.

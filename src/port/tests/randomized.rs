@@ -12,7 +12,7 @@
 //! longer runs.
 
 use super::double::{Call, DoubleMount};
-use crate::port::framer::{ACK, COMMAND_CAPACITY, COMMAND_TIMEOUT_US};
+use crate::port::lexer::{ACK, COMMAND_CAPACITY, COMMAND_TIMEOUT_US};
 use crate::port::mount_port::GuidePulse;
 use crate::port::reply::{ReplySink, REPLY_CAPACITY};
 use crate::port::{Interpreter, PortCounters};

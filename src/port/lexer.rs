@@ -1,8 +1,9 @@
-//! Bytes to commands: finds the LX200 frames `:...#` and the lone ACK byte
-//! in whatever arrives, and throws the rest away, counting it.
+//! Bytes to commands: finds the LX200 commands `:...#` and the lone ACK
+//! byte (the [`Token`]s) in whatever arrives, and throws the rest away,
+//! counting it.
 //!
 //! Rules, in the order a byte meets them:
-//! - Outside a command, ACK (0x06) is a frame of its own, `:` opens a
+//! - Outside a command, ACK (0x06) is a token of its own, `:` opens a
 //!   command, anything else is garbage (counted per byte).
 //! - Inside a command, `#` closes it. A control byte (below 0x20, or DEL)
 //!   abandons it: no client puts one inside a command, so it is line noise
@@ -22,7 +23,7 @@ use heapless::Vec;
 /// LX200 clients send is `Sd sDD*MM:SS` (12 bytes) or `SC MM/DD/YY` (11);
 /// ours is a configuration field set, `~Kra_steps_per_worm_turn=` and ten
 /// digits (35), or a real with twelve digits, a sign and a point. RAM:
-/// this many bytes plus the framer's state, about 64 bytes per port.
+/// this many bytes plus the lexer's state, about 64 bytes per port.
 pub const COMMAND_CAPACITY: usize = 48;
 
 /// How long a command may take from its `:` to its `#`. A client writes a
@@ -33,18 +34,18 @@ pub const COMMAND_TIMEOUT_US: u64 = 1_000_000;
 /// The single byte LX200 clients send to ask for the alignment mode.
 pub const ACK: u8 = 0x06;
 
-/// A complete frame.
+/// A complete token.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Frame<'a> {
+pub enum Token<'a> {
     /// The ACK byte.
     Ack,
     /// A command's body, without its `:` and `#`.
     Command(&'a [u8]),
 }
 
-/// What the framer has thrown away, since start-up (wrapping counts).
+/// What the lexer has thrown away, since start-up (wrapping counts).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct FramerCounters {
+pub struct LexerCounters {
     /// Bytes outside any command, and the bytes of abandoned commands.
     pub garbage_bytes: u32,
     /// Commands longer than [`COMMAND_CAPACITY`].
@@ -63,26 +64,26 @@ enum State {
     Overflow { since_us: u64 },
 }
 
-/// The framer of one port.
+/// The lexer of one port.
 #[derive(Clone, Debug)]
-pub struct Framer {
+pub struct Lexer {
     body: Vec<u8, COMMAND_CAPACITY>,
     state: State,
-    counters: FramerCounters,
+    counters: LexerCounters,
 }
 
-impl Default for Framer {
+impl Default for Lexer {
     fn default() -> Self {
         Self::new()
     }
 }
 
-impl Framer {
+impl Lexer {
     pub const fn new() -> Self {
-        Framer {
+        Lexer {
             body: Vec::new(),
             state: State::Idle,
-            counters: FramerCounters {
+            counters: LexerCounters {
                 garbage_bytes: 0,
                 overflows: 0,
                 timeouts: 0,
@@ -90,7 +91,7 @@ impl Framer {
         }
     }
 
-    pub fn counters(&self) -> FramerCounters {
+    pub fn counters(&self) -> LexerCounters {
         self.counters
     }
 
@@ -109,11 +110,11 @@ impl Framer {
         }
     }
 
-    /// Takes one byte; returns the frame it completes, if any.
-    pub fn push(&mut self, byte: u8, now_us: u64) -> Option<Frame<'_>> {
+    /// Takes one byte; returns the token it completes, if any.
+    pub fn push(&mut self, byte: u8, now_us: u64) -> Option<Token<'_>> {
         match self.state {
             State::Idle => match byte {
-                ACK => return Some(Frame::Ack),
+                ACK => return Some(Token::Ack),
                 b':' => {
                     self.body.clear();
                     self.state = State::Command { since_us: now_us };
@@ -123,11 +124,11 @@ impl Framer {
             State::Command { since_us } => match byte {
                 b'#' => {
                     self.state = State::Idle;
-                    return Some(Frame::Command(&self.body));
+                    return Some(Token::Command(&self.body));
                 }
                 ACK => {
                     self.abandon();
-                    return Some(Frame::Ack);
+                    return Some(Token::Ack);
                 }
                 0..=0x1f | 0x7f => {
                     self.abandon();
