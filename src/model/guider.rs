@@ -17,7 +17,7 @@ use core::mem::MaybeUninit;
 use crate::model::gp::grid::{Grid, Push, CELL_S, GRID_CELLS};
 use crate::model::gp::infer::Gp;
 use crate::model::gp::kernel::Kernel;
-use crate::model::in_place::{build, fill, uninit_field};
+use crate::model::in_place::{build, fill, init_fields};
 use crate::model::numeric::clamp;
 use crate::model::numeric::scalar::Scalar;
 use crate::model::spectral::discovery::Discovery;
@@ -236,36 +236,36 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             s.checked_sub(1)
                 .and_then(|i| config.stage_seeds_s.get(i).copied().flatten())
         });
-        uninit_field!(slot, config).write(config);
-        Grid::init(uninit_field!(slot, grid));
-        fill(uninit_field!(slot, scratch), S::ZERO);
-        uninit_field!(slot, peaks_stale).write(true);
-        Gp::init(uninit_field!(slot, gp));
-        uninit_field!(slot, kernel).write(Kernel::new(&periods, &gates));
-        uninit_field!(slot, trackers).write(trackers);
-        uninit_field!(slot, gates).write(gates);
-        uninit_field!(slot, discovery).write(Discovery::new(seeds));
-        uninit_field!(slot, worm_peak_s).write(None);
-        uninit_field!(slot, frames).write(0);
-        uninit_field!(slot, warm_up_frames).write(WARM_UP_FRAMES);
-        uninit_field!(slot, start_time).write(0.0);
-        uninit_field!(slot, last_time).write(0.0);
-        uninit_field!(slot, held_time).write(None);
-        uninit_field!(slot, sum_control).write(0.0);
-        uninit_field!(slot, recent_controls).write([S::ZERO; 2]);
-        uninit_field!(slot, last_prediction_end).write(None);
-        uninit_field!(slot, prediction).write(S::ZERO);
-        uninit_field!(slot, dither_offset).write(0.0);
-        uninit_field!(slot, dither_frames_left).write(0);
-        uninit_field!(slot, learning_progress).write(0.0);
-        uninit_field!(slot, blend).write(0.0);
-        uninit_field!(slot, trust).write(Trust::new());
-        uninit_field!(slot, faults).write(Faults::default());
-        uninit_field!(slot, resume).write(None);
-        uninit_field!(slot, phase_search).write(None);
-        uninit_field!(slot, spectrum_hold).write(None);
-        // SAFETY: all 26 fields are written.
-        unsafe { slot.assume_init_mut() }
+        init_fields!(slot, Self {
+            config = config,
+            grid in Grid::init,
+            scratch in |f| fill(f, S::ZERO),
+            peaks_stale = true,
+            gp in Gp::init,
+            kernel = Kernel::new(&periods, &gates),
+            trackers = trackers,
+            gates = gates,
+            discovery = Discovery::new(seeds),
+            worm_peak_s = None,
+            frames = 0,
+            warm_up_frames = WARM_UP_FRAMES,
+            start_time = 0.0,
+            last_time = 0.0,
+            held_time = None,
+            sum_control = 0.0,
+            recent_controls = [S::ZERO; 2],
+            last_prediction_end = None,
+            prediction = S::ZERO,
+            dither_offset = 0.0,
+            dither_frames_left = 0,
+            learning_progress = 0.0,
+            blend = 0.0,
+            trust = Trust::new(),
+            faults = Faults::default(),
+            resume = None,
+            phase_search = None,
+            spectrum_hold = None,
+        })
     }
 
     /// Forget the data (not the learned periods, nor the fault counters).

@@ -21,6 +21,33 @@ macro_rules! uninit_field {
 }
 pub(crate) use uninit_field;
 
+/// Writes every field of the `&mut MaybeUninit<Self>` `$slot`, in the
+/// order given, and returns it as `&mut Self`: `field = value` writes the
+/// value, `field in init` calls `init(&mut MaybeUninit<Field>)` (a large
+/// field's own in-place `init`, or [`fill`]). Used inside the type's
+/// `impl`. The compiler checks that the list names every field of `Self`
+/// once: the same list is a struct literal in a closure that is never
+/// called (it makes no code), so a field added to the type and not here
+/// fails to build instead of being read uninitialised.
+macro_rules! init_fields {
+    ($slot:expr, Self { $( $field:ident $how:tt $value:expr ),* $(,)? }) => {{
+        let slot = $slot;
+        $( $crate::model::in_place::init_fields!(@one slot, $field $how $value); )*
+        #[allow(unreachable_code, clippy::empty_loop)]
+        let _every_field_once = || Self { $( $field: loop {} ),* };
+        // SAFETY: every field of `Self` was written above: the closure's
+        // struct literal, checked by the compiler, names each one once.
+        unsafe { slot.assume_init_mut() }
+    }};
+    (@one $slot:ident, $field:ident = $value:expr) => {
+        $crate::model::in_place::uninit_field!($slot, $field).write($value)
+    };
+    (@one $slot:ident, $field:ident in $init:expr) => {
+        ($init)($crate::model::in_place::uninit_field!($slot, $field))
+    };
+}
+pub(crate) use init_fields;
+
 /// The place behind `field` as a `MaybeUninit` to write.
 ///
 /// # Safety

@@ -9,7 +9,7 @@
 use core::mem::MaybeUninit;
 use core::ops::Range;
 
-use crate::model::in_place::{build, fill, uninit_field};
+use crate::model::in_place::{build, fill, init_fields};
 use crate::model::numeric::dot::{dot, BLOCK};
 use crate::model::numeric::scalar::Scalar;
 
@@ -48,10 +48,10 @@ impl<S: Scalar, const CAP: usize, const TRI: usize> Ldlt<S, CAP, TRI> {
     pub fn init(slot: &mut MaybeUninit<Self>) -> &mut Self {
         #[allow(clippy::let_unit_value)]
         let _ = Self::TRI_MATCHES_CAP;
-        fill(uninit_field!(slot, a), S::ZERO);
-        uninit_field!(slot, n).write(0);
-        // SAFETY: both fields are written.
-        unsafe { slot.assume_init_mut() }
+        init_fields!(slot, Self {
+            a in |f| fill(f, S::ZERO),
+            n = 0,
+        })
     }
 
     /// Current dimension.

@@ -10,7 +10,7 @@
 use core::mem::MaybeUninit;
 
 use crate::model::guider::{Faults, Guider, GuiderConfig, DITHER_FRAMES, MAX_TIME_STEP_S};
-use crate::model::in_place::{build, uninit_field};
+use crate::model::in_place::{build, init_fields};
 use crate::model::numeric::clamp;
 use crate::model::snapshot::{
     Phase, Snapshot, SnapshotError, FORMAT_VERSION, SNAPSHOT_MAX, SNAPSHOT_MAX_STAGES,
@@ -117,17 +117,17 @@ impl<const N: usize> Learner<N> {
         mount: &Mount,
         config: GuiderConfig<f32>,
     ) -> &'a mut Self {
-        Guider::init(uninit_field!(slot, guider), config);
-        uninit_field!(slot, snr).write(0.0);
-        uninit_field!(slot, cadence_s).write(mount.config().guide_cadence_s);
-        uninit_field!(slot, last_gear_s).write(None);
-        uninit_field!(slot, settling).write(0);
-        uninit_field!(slot, damping).write(Damping::new(mount.config().least_pulse_share));
-        uninit_field!(slot, pulse_weight).write(PulseWeight::FULL);
-        uninit_field!(slot, bump).write(Bump::NONE);
-        uninit_field!(slot, counters).write(LearnerCounters::default());
-        // SAFETY: all 9 fields are written.
-        unsafe { slot.assume_init_mut() }
+        init_fields!(slot, Self {
+            guider in |f| Guider::init(f, config),
+            snr = 0.0,
+            cadence_s = mount.config().guide_cadence_s,
+            last_gear_s = None,
+            settling = 0,
+            damping = Damping::new(mount.config().least_pulse_share),
+            pulse_weight = PulseWeight::FULL,
+            bump = Bump::NONE,
+            counters = LearnerCounters::default(),
+        })
     }
 
     fn default_config(mount: &Mount) -> GuiderConfig<f32> {

@@ -29,7 +29,7 @@
 
 use core::mem::MaybeUninit;
 
-use crate::model::in_place::{build, fill, uninit_field};
+use crate::model::in_place::{build, fill, init_fields};
 use crate::model::numeric::scalar::Scalar;
 
 /// Number of cells: 2048 x 5 s = 2.8 h of history.
@@ -92,25 +92,25 @@ impl<S: Scalar> Grid<S> {
 
     /// [`new`](Self::new) in place (`crate::model::in_place`).
     pub fn init(slot: &mut MaybeUninit<Self>) -> &mut Self {
-        fill(uninit_field!(slot, gear), S::ZERO);
-        fill(uninit_field!(slot, variance), S::ZERO);
-        uninit_field!(slot, head).write(0);
-        uninit_field!(slot, len).write(0);
-        uninit_field!(slot, emitted).write(0);
-        uninit_field!(slot, origin).write(0.0);
-        uninit_field!(slot, started).write(false);
-        uninit_field!(slot, cell_end).write(0.0);
-        uninit_field!(slot, last_time).write(-CELL_S);
-        uninit_field!(slot, anchor_gear).write(0.0);
-        uninit_field!(slot, anchor_variance).write(0.0);
-        uninit_field!(slot, gear_sum).write(0.0);
-        uninit_field!(slot, variance_sum).write(0.0);
-        uninit_field!(slot, anchor_time).write(-CELL_S);
-        uninit_field!(slot, time_sum).write(0.0);
-        uninit_field!(slot, lag_s).write(0.0);
-        uninit_field!(slot, lag_cells).write(0);
-        // SAFETY: all 17 fields are written.
-        unsafe { slot.assume_init_mut() }
+        init_fields!(slot, Self {
+            gear in |f| fill(f, S::ZERO),
+            variance in |f| fill(f, S::ZERO),
+            head = 0,
+            len = 0,
+            emitted = 0,
+            origin = 0.0,
+            started = false,
+            cell_end = 0.0,
+            last_time = -CELL_S,
+            anchor_gear = 0.0,
+            anchor_variance = 0.0,
+            gear_sum = 0.0,
+            variance_sum = 0.0,
+            anchor_time = -CELL_S,
+            time_sum = 0.0,
+            lag_s = 0.0,
+            lag_cells = 0,
+        })
     }
 
     pub fn clear(&mut self) {

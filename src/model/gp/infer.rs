@@ -18,7 +18,7 @@ use crate::model::gp::kernel::Kernel;
 use crate::model::gp::subset::Subset;
 use crate::model::gp::trend::Trend;
 use crate::model::gp::{gram, lag_table, InferError, SUBSET, TRIANGLE};
-use crate::model::in_place::{build, fill, uninit_field};
+use crate::model::in_place::{build, fill, init_fields};
 use crate::model::ldlt::Ldlt;
 use crate::model::numeric::scalar::Scalar;
 
@@ -43,14 +43,14 @@ impl<S: Scalar> Gp<S> {
 
     /// [`new`](Self::new) in place (`crate::model::in_place`).
     pub fn init(slot: &mut MaybeUninit<Self>) -> &mut Self {
-        Ldlt::init(uninit_field!(slot, chol));
-        uninit_field!(slot, subset).write(Subset::new());
-        fill(uninit_field!(slot, weights), S::ZERO);
-        uninit_field!(slot, trend).write(Trend::new());
-        uninit_field!(slot, slope).write(S::ZERO);
-        uninit_field!(slot, valid).write(false);
-        // SAFETY: all 6 fields are written.
-        unsafe { slot.assume_init_mut() }
+        init_fields!(slot, Self {
+            chol in Ldlt::init,
+            subset = Subset::new(),
+            weights in |f| fill(f, S::ZERO),
+            trend = Trend::new(),
+            slope = S::ZERO,
+            valid = false,
+        })
     }
 
     /// Whether the last [`infer`](Self::infer) succeeded.
