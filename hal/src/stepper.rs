@@ -19,7 +19,8 @@
 //! TIM3, TIM4 and TIM8, whose channel-1 pins are the STEP outputs, stay free
 //! for hardware step generation later.
 //!
-//! The interrupt handler itself lives in the firmware (`main.rs`, `fn TIM2`):
+//! The interrupt handler itself lives in the firmware
+//! (`src/firmware/step_tick.rs`, `fn TIM2`):
 //! it owns the library's steppers, which this crate does not depend on (see
 //! [`crate::st4`] for why).
 

@@ -163,7 +163,8 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     /// [`Snapshot::parse`]): the periods, stages and gates, and the cells,
     /// placed at the first frame as `phase` allows and, unless every
     /// stage's phase is known, again by the phase search a little later
-    /// (half a worm period; with the worm's phase known, a tenth). The
+    /// (half a worm period; with the worm's phase known, a quarter, or a
+    /// twentieth once the other stages are fitted apart). The
     /// fault counters stay. A snapshot of another stage count, or one
     /// outside the bounds this configuration learns within (`bounds`), is
     /// refused and nothing changes.
