@@ -14,6 +14,7 @@
 
 use core::mem::MaybeUninit;
 
+use crate::model::additions::Additions;
 use crate::model::gp::grid::{Grid, Push, CELL_S, GRID_CELLS};
 use crate::model::gp::infer::Gp;
 use crate::model::gp::kernel::Kernel;
@@ -100,6 +101,8 @@ pub struct GuiderConfig<S> {
     /// the mount can correct it. Infinite (the default) for a PC guider,
     /// which keeps the reference's arithmetic.
     pub max_gear_rate: f64,
+    /// The additions around the paper's model, each switchable by name.
+    pub additions: Additions,
 }
 
 /// Stages beyond the worm that can be given a seed period.
@@ -119,6 +122,7 @@ impl<S: Scalar> Default for GuiderConfig<S> {
             stage_seeds_s: [None; MAX_SEEDED_STAGES],
             prediction_at_gear_time: false,
             max_gear_rate: f64::INFINITY,
+            additions: Additions::ALL,
         }
     }
 }

@@ -5,8 +5,10 @@
 //! Layers, each using only those above it: [`numeric`] and `in_place`
 //! (building the large state where it lives), then [`ldlt`] (linear
 //! algebra), [`spectral`] and [`gp`], and on top the [`guider`], which turns
-//! frames into controls and predictions.
+//! frames into controls and predictions. [`additions`]: the switches of
+//! everything added around the paper's model.
 
+pub mod additions;
 pub mod gp;
 pub mod guider;
 pub(crate) mod in_place;

@@ -16,7 +16,7 @@ use crate::model::snapshot::{
     Phase, Snapshot, SnapshotError, FORMAT_VERSION, SNAPSHOT_MAX, SNAPSHOT_MAX_STAGES,
 };
 use crate::mount::config::Mount;
-use crate::mount::frame::{FeedForward, Frame, FrameKind};
+use crate::mount::frame::{FeedForward, Frame, FrameKind, PulseShare};
 use crate::mount::guiding::bump::{self, Bump};
 use crate::mount::guiding::damping::{Damping, SavedShare, SAVED_LEN};
 use crate::mount::guiding::pulse_weight::PulseWeight;
@@ -229,8 +229,13 @@ impl<const N: usize> Learner<N> {
         self.guider.restore(&snapshot, phase)?;
         self.last_gear_s = None;
         self.settling = 0;
-        self.damping.restore(share);
-        self.pulse_weight = PulseWeight::restored(share.weight());
+        if self.guider.config().additions.saved_share {
+            self.damping.restore(share);
+            self.pulse_weight = PulseWeight::restored(share.weight());
+        } else {
+            self.damping.reset();
+            self.pulse_weight = PulseWeight::FULL;
+        }
         Ok(())
     }
 
@@ -319,7 +324,9 @@ impl<const N: usize> Learner<N> {
         // A pulse far beyond the recent ones: the star stepped. Settle as
         // after a dither and measure the step, trusted model or not (a step
         // learned before the model is trusted stays in its data).
-        let stepped = sane.is_some()
+        let adds = self.guider.config().additions;
+        let stepped = adds.bump
+            && sane.is_some()
             && self.settling == 0
             && self
                 .damping
@@ -359,8 +366,15 @@ impl<const N: usize> Learner<N> {
         // A guide frame's pulse (0 when the guider sent none); the others
         // (dithers, settling, silence) are carried out in full.
         let pulse = sane.filter(|_| !settling).map(|_| frame.pulse_arcsec);
-        let pulse_share = self.damping.frame(pulse, self.trusted());
-        if pulse.is_some() {
+        let earned = self
+            .damping
+            .frame(pulse, self.trusted() || !adds.trusted_gate);
+        let pulse_share = if adds.pulse_damping {
+            earned
+        } else {
+            PulseShare::FULL
+        };
+        if pulse.is_some() && adds.pulse_weight {
             self.pulse_weight.frame(self.damping.swing());
         }
         // In effect for three frames: of the cadence, or of the guider's
@@ -371,10 +385,11 @@ impl<const N: usize> Learner<N> {
         // configured cadence) ran out before nearly every frame there
         // (docs/results.md, "The corners of the ranges").
         let spacing = clamp(d, cadence, MAX_TIME_STEP_S.max(cadence));
+        let frames = if adds.feed_forward_horizon { 3.0 } else { 1.0 };
         FeedForward {
             rate_arcsec_per_s: rate,
             from_gear_s: t,
-            until_gear_s: t + 3.0 * spacing,
+            until_gear_s: t + frames * spacing,
             pulse_share: self.pulse_weight.share(pulse_share),
         }
     }
@@ -469,6 +484,101 @@ mod tests {
         assert_eq!(l.counters().bumps, 0);
         l.learn(frame(100, 18.0));
         assert_eq!(l.counters().bumps, 1);
+    }
+
+    /// A learner of one stage with the addition `name` switched off.
+    fn without(name: &str) -> std::boxed::Box<Learner<1>> {
+        let m = MountConfig::default().validate().unwrap();
+        let mut config = Learner::<1>::default_config(&m);
+        config.additions.set(name, false).unwrap();
+        std::boxed::Box::new(Learner::with_config(&m, config))
+    }
+
+    /// `n` frames of untrusted small pulses that alternate in sign, in
+    /// pairs (`+ + - -`) when `pairs`: neighbours then correlate at 0 and
+    /// pulses two apart at -1 (a swing), else neighbours at -1.
+    fn alternating(l: &mut Learner<1>, n: u32, pairs: bool) {
+        for k in 0..n {
+            let sign = if (if pairs { k / 2 } else { k }) % 2 == 0 {
+                1.0
+            } else {
+                -1.0
+            };
+            l.learn(measured(k, 0.0, 0.3 * sign));
+        }
+        assert!(l.guider().blend_weight() < TRUSTED_BLEND);
+    }
+
+    #[test]
+    fn without_the_bump_a_step_is_learned() {
+        let mut l = without("bump");
+        for k in 0..100 {
+            l.learn(measured(k, 0.3, 0.2));
+        }
+        l.learn(measured(100, 18.0 / 0.7, 18.0));
+        assert_eq!((l.counters().bumps, l.counters().not_learned), (0, 0));
+    }
+
+    #[test]
+    fn without_the_horizon_a_feed_forward_lasts_one_frame() {
+        let mut l = without("feed_forward_horizon");
+        let ff = l.learn(measured(0, 0.0, 0.0));
+        assert_eq!(ff.until_gear_s - ff.from_gear_s, 2.0);
+    }
+
+    #[test]
+    fn without_the_pulse_weight_a_swing_keeps_every_pulse_learned() {
+        let mut on = without("saved_share");
+        alternating(&mut on, 300, true);
+        assert!(on.pulse_weight() < 1.0, "{}", on.pulse_weight());
+        let mut off = without("pulse_weight");
+        alternating(&mut off, 300, true);
+        assert_eq!(off.pulse_weight(), 1.0);
+    }
+
+    #[test]
+    fn without_the_trusted_gate_the_share_is_earned_before_trust() {
+        let mut on = without("saved_share");
+        alternating(&mut on, 300, false);
+        assert_eq!(on.pulse_share(), 1.0);
+        let mut off = without("trusted_gate");
+        alternating(&mut off, 300, false);
+        assert!(off.pulse_share() < 0.5, "{}", off.pulse_share());
+        // And without damping, nothing is earned even so.
+        let m = MountConfig::default().validate().unwrap();
+        let mut config = Learner::<1>::default_config(&m);
+        config.additions.trusted_gate = false;
+        config.additions.pulse_damping = false;
+        let mut neither = std::boxed::Box::new(Learner::<1>::with_config(&m, config));
+        for k in 0..300 {
+            let ff = neither.learn(measured(k, 0.0, if k % 2 == 0 { 0.3 } else { -0.3 }));
+            assert_eq!(ff.pulse_share, PulseShare::FULL, "frame {k}");
+        }
+    }
+
+    #[test]
+    fn without_the_saved_share_a_restored_learner_earns_it_again() {
+        let m = MountConfig::default().validate().unwrap();
+        let mut a = without("trusted_gate");
+        alternating(&mut a, 300, false);
+        alternating(&mut a, 300, true);
+        let (share, weight) = (a.pulse_share(), a.pulse_weight());
+        assert!(share < 1.0 && weight < 1.0, "{share} {weight}");
+        let mut bytes = std::vec![0u8; RECORD_MAX];
+        let n = a.snapshot(&mut bytes).unwrap();
+        let restored = |name: Option<&str>| {
+            let mut config = Learner::<1>::default_config(&m);
+            if let Some(name) = name {
+                config.additions.set(name, false).unwrap();
+            }
+            let mut b = std::boxed::Box::new(Learner::<1>::with_config(&m, config));
+            b.restore(&bytes[..n], RECORD_FORMAT, Phase::Unknown)
+                .unwrap();
+            (b.pulse_share(), b.pulse_weight())
+        };
+        assert_eq!(restored(None).1, weight);
+        assert!(restored(None).0 < 1.0);
+        assert_eq!(restored(Some("saved_share")), (1.0, 1.0));
     }
 
     /// A learner restored from another's bytes holds the same model and

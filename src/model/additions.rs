@@ -1,0 +1,105 @@
+//! The additions around the paper's model, each switchable by name.
+//!
+//! Each was added to mend one case or one log; a simulator turns any one
+//! off (by its name, [`Additions::set`]) to measure what it is worth on
+//! mounts it was not tuned on. All are on by default: the firmware runs
+//! them all. `GuiderConfig::additions` carries them to the model and to the
+//! learner around it (`crate::mount::learner`), which reads its own here.
+
+/// The switches, all on by default ([`Additions::ALL`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Additions {
+    /// The learner: a pulse far beyond the recent ones is a step of the
+    /// star, settled over and measured out of the observations
+    /// (`mount::guiding::bump`). Off: learned as it comes.
+    pub bump: bool,
+    /// The learner: a guider whose pulses swing (anti-correlated two
+    /// frames apart) is learned with a smaller part of each pulse
+    /// (`mount::guiding::pulse_weight`). Off: every pulse in full.
+    pub pulse_weight: bool,
+    /// The learner: the share of each RA pulse the firmware carries out,
+    /// earned from the pulses' correlation (`mount::guiding::damping`).
+    /// Off: every pulse in full.
+    pub pulse_damping: bool,
+    /// The learner: the share is earned only while the model is trusted in
+    /// full. Off: from the first measured pulses.
+    pub trusted_gate: bool,
+    /// The learner: a feed-forward lasts three of the guider's frames. Off:
+    /// one.
+    pub feed_forward_horizon: bool,
+    /// The learner: the share and the pulse weight are saved with the
+    /// model and taken back with it. Off: a restored learner starts with
+    /// every pulse in full, to earn them again.
+    pub saved_share: bool,
+}
+
+/// A name [`Additions::set`] does not know.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct UnknownAddition;
+
+impl Additions {
+    /// Every addition on: the firmware's model.
+    pub const ALL: Additions = Additions {
+        bump: true,
+        pulse_weight: true,
+        pulse_damping: true,
+        trusted_gate: true,
+        feed_forward_horizon: true,
+        saved_share: true,
+    };
+
+    /// Each addition's name, as [`set`](Self::set) takes it.
+    pub const NAMES: [&'static str; 6] = [
+        "bump",
+        "pulse_weight",
+        "pulse_damping",
+        "trusted_gate",
+        "feed_forward_horizon",
+        "saved_share",
+    ];
+
+    /// Switches the addition called `name` on or off.
+    pub fn set(&mut self, name: &str, on: bool) -> Result<(), UnknownAddition> {
+        let switch = match name {
+            "bump" => &mut self.bump,
+            "pulse_weight" => &mut self.pulse_weight,
+            "pulse_damping" => &mut self.pulse_damping,
+            "trusted_gate" => &mut self.trusted_gate,
+            "feed_forward_horizon" => &mut self.feed_forward_horizon,
+            "saved_share" => &mut self.saved_share,
+            _ => return Err(UnknownAddition),
+        };
+        *switch = on;
+        Ok(())
+    }
+}
+
+impl Default for Additions {
+    fn default() -> Self {
+        Self::ALL
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_name_switches_its_own_addition_and_no_other() {
+        for name in Additions::NAMES {
+            let mut a = Additions::ALL;
+            a.set(name, false).unwrap();
+            assert_ne!(a, Additions::ALL, "{name}");
+            for other in Additions::NAMES.iter().filter(|&&o| o != name) {
+                let mut b = Additions::ALL;
+                b.set(other, false).unwrap();
+                assert_ne!(a, b, "{name} and {other}");
+            }
+            a.set(name, true).unwrap();
+            assert_eq!(a, Additions::ALL, "{name}");
+        }
+        let mut a = Additions::ALL;
+        assert_eq!(a.set("no_such", false), Err(UnknownAddition));
+        assert_eq!(a, Additions::ALL);
+    }
+}
