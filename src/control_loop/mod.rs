@@ -25,6 +25,7 @@ pub mod storm;
 
 use heapless::Vec;
 
+use crate::model::additions::Additions;
 use crate::mount::config::Mount;
 use crate::mount::frame::{FeedForward, Frame, Rates};
 use crate::mount::guiding::{Guiding, GuidingCounters};
@@ -83,8 +84,19 @@ impl ControlLoop {
     /// The loop for `mount`, at time `now_us` with the RA axis at
     /// `ra_steps`; returns it and the rates to start with (tracking).
     pub fn start(mount: &Mount, now_us: u64, ra_steps: i64) -> (Self, Rates) {
+        Self::start_with(mount, Additions::ALL, now_us, ra_steps)
+    }
+
+    /// [`start`](Self::start) with some of the fast part's `additions`
+    /// switched off (a simulator's).
+    pub fn start_with(
+        mount: &Mount,
+        additions: Additions,
+        now_us: u64,
+        ra_steps: i64,
+    ) -> (Self, Rates) {
         let c = mount.config();
-        let mut guiding = Guiding::new(mount);
+        let mut guiding = Guiding::with_additions(mount, additions);
         let rates = guiding.rates(now_us, ra_steps);
         let lp = ControlLoop {
             feed: St4Feed::new(c.glitch_us, c.pulse_cap_us),

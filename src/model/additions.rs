@@ -4,7 +4,9 @@
 //! off (by its name, [`Additions::set`]) to measure what it is worth on
 //! mounts it was not tuned on. All are on by default: the firmware runs
 //! them all. `GuiderConfig::additions` carries them to the model and to the
-//! learner around it (`crate::mount::learner`), which reads its own here.
+//! learner around it (`crate::mount::learner`), which reads its own here;
+//! the loop's fast part takes them at its start
+//! (`crate::control_loop::ControlLoop::start_with`).
 
 /// The switches, all on by default ([`Additions::ALL`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -31,6 +33,11 @@ pub struct Additions {
     /// model and taken back with it. Off: a restored learner starts with
     /// every pulse in full, to earn them again.
     pub saved_share: bool,
+    /// The guiding: a guider's calibration recognised from its equal
+    /// pulses, its frames not learned (`mount::guiding::calibration`;
+    /// reached through `ControlLoop::start_with`). Off: learned as guide
+    /// frames.
+    pub calibration_watch: bool,
 }
 
 /// A name [`Additions::set`] does not know.
@@ -46,16 +53,18 @@ impl Additions {
         trusted_gate: true,
         feed_forward_horizon: true,
         saved_share: true,
+        calibration_watch: true,
     };
 
     /// Each addition's name, as [`set`](Self::set) takes it.
-    pub const NAMES: [&'static str; 6] = [
+    pub const NAMES: [&'static str; 7] = [
         "bump",
         "pulse_weight",
         "pulse_damping",
         "trusted_gate",
         "feed_forward_horizon",
         "saved_share",
+        "calibration_watch",
     ];
 
     /// Switches the addition called `name` on or off.
@@ -67,6 +76,7 @@ impl Additions {
             "trusted_gate" => &mut self.trusted_gate,
             "feed_forward_horizon" => &mut self.feed_forward_horizon,
             "saved_share" => &mut self.saved_share,
+            "calibration_watch" => &mut self.calibration_watch,
             _ => return Err(UnknownAddition),
         };
         *switch = on;

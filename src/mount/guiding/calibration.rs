@@ -53,14 +53,24 @@ struct Pulse {
 }
 
 /// Whether the guider is calibrating, from its pulses on both axes.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug)]
 pub(super) struct CalibrationWatch {
+    /// Off: no pulse is a calibration's (`Additions::calibration_watch`).
+    on: bool,
     last: [Option<Pulse>; 2],
     /// Frames up to this time are a calibration's.
     until_us: Option<u64>,
 }
 
 impl CalibrationWatch {
+    pub fn new(on: bool) -> Self {
+        CalibrationWatch {
+            on,
+            last: [None; 2],
+            until_us: None,
+        }
+    }
+
     /// A pulse on `axis` ended at `end_us` after `length_us`; `hold_us` is
     /// the hold after it. True when it is a calibration's step that begins
     /// a calibration: not one recognised within a hold before (a Dec leg
@@ -96,7 +106,7 @@ impl CalibrationWatch {
             end_us,
             run,
         });
-        if run < RUN {
+        if run < RUN || !self.on {
             return false;
         }
         let began = self
@@ -157,7 +167,7 @@ mod tests {
 
     #[test]
     fn a_calibration_is_recognised_from_its_third_pulse_to_the_hold_after_its_last() {
-        let mut w = CalibrationWatch::default();
+        let mut w = CalibrationWatch::new(true);
         for k in 1..u64::from(RUN) {
             let t = k * 2_000_000;
             assert!(!w.pulse(Axis::Ra, Direction::Plus, 750_000, t, HOLD));
@@ -171,7 +181,7 @@ mod tests {
 
     #[test]
     fn guide_pulses_of_different_lengths_or_ways_are_no_calibration() {
-        let mut w = CalibrationWatch::default();
+        let mut w = CalibrationWatch::new(true);
         let pulses = [
             (Direction::Plus, 300_000),
             (Direction::Plus, 301_000),

@@ -145,13 +145,14 @@ impl Framer {
         dither_threshold_us: u64,
         silence_frames: u32,
         guide_arcsec_per_s: f32,
+        calibration_watch: bool,
     ) -> Self {
         Framer {
             aggressiveness,
             cadence_us,
             pulse_cadence: PulseCadence::default(),
             backlog: Backlog::default(),
-            calibration: CalibrationWatch::default(),
+            calibration: CalibrationWatch::new(calibration_watch),
             dither_threshold_us,
             silence_frames,
             guide_arcsec_per_s,

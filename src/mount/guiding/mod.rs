@@ -120,6 +120,7 @@ mod share;
 #[cfg(test)]
 mod tests;
 
+use crate::model::additions::Additions;
 use crate::model::numeric::clamp;
 use crate::mount::config::{Mount, SIDEREAL_ARCSEC_PER_S};
 use crate::mount::frame::{FeedForward, Frame, Rates};
@@ -237,6 +238,11 @@ fn finite_or_zero(x: f32) -> f32 {
 
 impl Guiding {
     pub fn new(mount: &Mount) -> Self {
+        Self::with_additions(mount, Additions::ALL)
+    }
+
+    /// [`new`](Self::new) with some of its `additions` switched off.
+    pub fn with_additions(mount: &Mount, additions: Additions) -> Self {
         let c = mount.config();
         let sidereal_sps = mount.sidereal_ra_steps_per_s_f64();
         let guide_arcsec_per_s = mount.guide_rate_arcsec_per_s();
@@ -269,6 +275,7 @@ impl Guiding {
                 c.dither_threshold_us as u64,
                 c.silence_frames,
                 guide_arcsec_per_s,
+                additions.calibration_watch,
             ),
             feed_forward: FeedForwardState::new(guide_arcsec_per_s, worm_period_us, cadence_us),
             counters: GuidingCounters::default(),

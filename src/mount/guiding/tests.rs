@@ -293,3 +293,36 @@ fn pulses_back_to_back_freeze_learning_and_the_feed_forward() {
     assert_eq!(ff, 0.5);
     assert_eq!(g.counters().backlogs, 1);
 }
+
+/// Five equal 750 ms RA pulses, one every 2 s (a calibration's west leg):
+/// recognised from the third, its frames not learned; with the watch
+/// switched off (`Additions::calibration_watch`), guide frames.
+#[test]
+fn a_calibrations_frames_are_not_learned_unless_the_watch_is_off() {
+    let m = mount();
+    let kinds = |additions: crate::model::additions::Additions| {
+        let mut g = Guiding::with_additions(&m, additions);
+        let mut pos = 0.0;
+        let mut kinds = std::vec::Vec::new();
+        for k in 0..5u64 {
+            let t = 1_000_000 + k * 2_000_000;
+            track(&mut g, t.saturating_sub(1_000_000), t, &mut pos);
+            g.on_event(start(Direction::Plus, t));
+            track(&mut g, t, t + 750_000, &mut pos);
+            g.on_event(end(t + 750_000));
+            while let Some(f) = g.take_frame() {
+                kinds.push(f.kind);
+            }
+        }
+        (kinds, g.counters().calibrations)
+    };
+    let (on, recognised) = kinds(crate::model::additions::Additions::ALL);
+    assert_eq!(recognised, 1);
+    assert_eq!(on.first(), Some(&FrameKind::Measured));
+    assert_eq!(on.last(), Some(&FrameKind::Calibration), "{on:?}");
+    let mut without = crate::model::additions::Additions::ALL;
+    without.calibration_watch = false;
+    let (off, recognised) = kinds(without);
+    assert_eq!(recognised, 0);
+    assert!(off.iter().all(|k| *k == FrameKind::Measured), "{off:?}");
+}
