@@ -176,7 +176,7 @@ impl<const N: usize> Learner<N> {
     /// length. Not per frame: it reads a thousand cells. Refused after a
     /// restore until the saved data is placed (`SnapshotError::Placing`):
     /// half a worm period with the phase unknown; with only the worm's, a
-    /// tenth or until the new data picks each stage's phase (a quarter
+    /// twentieth or until the new data picks each stage's phase (a quarter
     /// where no stage can be taken apart). Keep the previous save then.
     pub fn snapshot(&self, out: &mut [u8]) -> Result<usize, SnapshotError> {
         let Some((head, model)) = out.split_at_mut_checked(WORM_LEN + SAVED_LEN) else {
