@@ -18,8 +18,9 @@
 #                    HardFault and a stack overflow in the model's task end
 #                    in the safe state.
 #   4. firmware:     cargo build --release for each chip, with flash/RAM use;
-#                    fails if the STM32F411CE build exceeds 256 KiB of flash
-#                    (its code region in memory.x, sectors 0-5) or 96 KiB
+#                    fails if the STM32F411CE build exceeds 217 KiB of flash
+#                    (a ratchet inside its 256 KiB code region in memory.x,
+#                    sectors 0-5; issue 29 asks for 200 KiB) or 96 KiB
 #                    of static RAM (the rest of its 128 KiB is left
 #                    for the stack), or if its panic call sites (counted in
 #                    the disassembly) exceed PANIC_SITES_MAX.
@@ -34,8 +35,11 @@ cd "$(dirname "$0")"
 
 TARGET=thumbv7em-none-eabihf
 CHIPS=(stm32f411ce stm32f446re stm32f407vg)
-# The code region of memory.x (sectors 0-5); sectors 6-7 are storage.
-F411_FLASH_MAX=$((256 * 1024))
+# A ratchet inside the code region of memory.x (256 KiB, sectors 0-5;
+# sectors 6-7 are storage), lowered as the build shrinks: 221,456 B in
+# issue 29, whose goal is 200 KiB (docs/decisions.md, "Flash: what costs
+# the most").
+F411_FLASH_MAX=$((217 * 1024))
 F411_RAM_MAX=$((96 * 1024))
 # Panic call sites in the F411 release ELF: a ratchet, lowered as they go.
 # None are the model's, the loop's or the port's: no_panic proves those
@@ -43,8 +47,9 @@ F411_RAM_MAX=$((96 * 1024))
 # came with embassy-usb's stack (docs/decisions.md, "USB serial"); 139 with
 # the store and the worm-index input (sequential-storage's map, our async
 # store code around it and embassy's EXTI future; docs/decisions.md,
-# "Persistence").
-PANIC_SITES_MAX=318
+# "Persistence"). Issue 29's smaller inlining and dependencies at "z" left
+# 12 fewer (sites merged, not removed): 306.
+PANIC_SITES_MAX=306
 
 kib() { printf '%d.%d KiB' $(($1 / 1024)) $((($1 % 1024) * 10 / 1024)); }
 step() { printf '\n==> %s\n' "$*"; }
@@ -224,7 +229,7 @@ echo "ELF per chip: $OUT/mkgp-mount-<chip>"
     die "stm32f411ce flash $f411_flash B exceeds the budget of $F411_FLASH_MAX B"
 [ "$f411_ram" -le "$F411_RAM_MAX" ] ||
     die "stm32f411ce static RAM $f411_ram B exceeds the budget of $F411_RAM_MAX B"
-echo "stm32f411ce within budget (flash <= 256 KiB, static RAM <= 96 KiB)"
+echo "stm32f411ce within budget (flash <= $((F411_FLASH_MAX / 1024)) KiB, static RAM <= 96 KiB)"
 
 step "panic call sites in the stm32f411ce release ELF (at most $PANIC_SITES_MAX)"
 sites=$(panic_sites "$OUT/mkgp-mount-stm32f411ce")
