@@ -2,7 +2,9 @@
 //!
 //! Columns `case,component,period_s,amplitude_px,phase_rad,drift_px_per_s`;
 //! one row per sinusoid and one `drift` row per case. The gear error is
-//! g(t) = sum A sin(2 pi t / P + phase) + drift t, in pixels.
+//! g(t) = sum A sin(2 pi t / P + phase) + drift t, in pixels. A file's
+//! sinusoids are steady; a drawn mount's (`crate::population`) can also
+//! change amplitude over the run ([`Envelope`]).
 
 use crate::data::{parse_f64, read_text, Error};
 use std::f64::consts::PI;
@@ -16,6 +18,43 @@ pub struct Sinusoid {
     pub period_s: f64,
     pub amplitude_px: f64,
     pub phase_rad: f64,
+    pub envelope: Envelope,
+}
+
+/// How a sinusoid's amplitude changes over the run: its amplitude at `t` is
+/// `amplitude_px` times [`Envelope::factor`].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Envelope {
+    /// The same amplitude all along (every sinusoid of a cases file).
+    #[default]
+    Steady,
+    /// Times 1 + depth sin(2 pi t / period + phase).
+    Modulated {
+        depth: f64,
+        period_s: f64,
+        phase_rad: f64,
+    },
+    /// Times 1 until `from_s`, then linearly to `to` over `over_s`, and `to`
+    /// after.
+    Fade { from_s: f64, over_s: f64, to: f64 },
+}
+
+impl Envelope {
+    /// The amplitude's factor at `t` (s).
+    pub fn factor(&self, t: f64) -> f64 {
+        match *self {
+            Envelope::Steady => 1.0,
+            Envelope::Modulated {
+                depth,
+                period_s,
+                phase_rad,
+            } => 1.0 + depth * (2.0 * PI * t / period_s + phase_rad).sin(),
+            Envelope::Fade { from_s, over_s, to } => {
+                let done = ((t - from_s) / over_s).clamp(0.0, 1.0);
+                1.0 + (to - 1.0) * done
+            }
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -31,7 +70,11 @@ impl Case {
         let periodic: f64 = self
             .sinusoids
             .iter()
-            .map(|s| s.amplitude_px * (2.0 * PI * t / s.period_s + s.phase_rad).sin())
+            .map(|s| {
+                s.amplitude_px
+                    * s.envelope.factor(t)
+                    * (2.0 * PI * t / s.period_s + s.phase_rad).sin()
+            })
             .sum();
         periodic + self.drift_px_per_s * t
     }
@@ -114,6 +157,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Vec<Case>, Error> {
                 period_s,
                 amplitude_px,
                 phase_rad,
+                envelope: Envelope::Steady,
             });
         }
     }
@@ -141,6 +185,26 @@ mod tests {
         let t = 123.0;
         let want = 2.0 * (2.0 * PI * t / 400.0 + 0.5).sin() + 0.001 * t;
         assert!((c[0].gear_error(t) - want).abs() < 1e-15);
+    }
+
+    #[test]
+    fn envelopes() {
+        let m = Envelope::Modulated {
+            depth: 0.5,
+            period_s: 3600.0,
+            phase_rad: 0.0,
+        };
+        assert!((m.factor(900.0) - 1.5).abs() < 1e-12);
+        assert!((m.factor(2700.0) - 0.5).abs() < 1e-12);
+        let f = Envelope::Fade {
+            from_s: 1000.0,
+            over_s: 500.0,
+            to: 0.2,
+        };
+        assert_eq!(f.factor(999.0), 1.0);
+        assert!((f.factor(1250.0) - 0.6).abs() < 1e-12);
+        assert!((f.factor(1600.0) - 0.2).abs() < 1e-12);
+        assert_eq!(Envelope::Steady.factor(1e6), 1.0);
     }
 
     #[test]

@@ -11,7 +11,9 @@
 //! (e.g. C1 0.332 / 0.705); U after the correction would give 0.152 / 0.637.
 //!
 //! The guide algorithm gets SNR 10 (INDIGO's value when the SNR is unknown; the
-//! reference traces carry it) and dt = 2 s.
+//! reference traces carry it) and dt = 2 s. A drawn mount's runs
+//! (`crate::population`) take their own frame interval and a random walk
+//! ([`Conditions`], [`run_in`]).
 
 use crate::cases::Case;
 use crate::guide_algorithm::{GuideAlgorithm, OpenLoop};
@@ -40,31 +42,64 @@ pub enum Noise {
     },
 }
 
-/// The frame times.
-pub fn frame_times() -> impl Iterator<Item = f64> {
-    (0..FRAMES).map(|k| k as f64 * DT)
+/// What besides the gear a run has: the paper's loop has frames every 2 s
+/// and nothing else moves the star; a drawn mount (`crate::population`)
+/// has its own exposure and a random walk.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Conditions {
+    /// Time between frames, s.
+    pub dt_s: f64,
+    /// A random walk of the star (flexure, seeing's slow part), px per
+    /// square root of a minute, drawn at each frame from its own generator
+    /// (the run's seed + 1000, as `st4_sim`'s); 0: none.
+    pub walk_px_per_sqrt_min: f64,
+}
+
+impl Conditions {
+    /// The paper's: [`DT`], no walk.
+    pub const PAPER: Conditions = Conditions {
+        dt_s: DT,
+        walk_px_per_sqrt_min: 0.0,
+    };
 }
 
 /// Run the loop; returns the residual RMS over t >= 3600 s.
 pub fn run(case: &Case, algorithm: &mut dyn GuideAlgorithm, noise: Noise) -> f64 {
-    let mut gauss = match noise {
-        Noise::None => None,
-        Noise::Gaussian { sigma_px, seed } => Some((sigma_px, Gaussian::new(seed))),
+    let (sigma_px, seed) = match noise {
+        Noise::None => (0.0, NOISY_SEEDS[0]),
+        Noise::Gaussian { sigma_px, seed } => (sigma_px, seed),
     };
+    run_in(case, algorithm, sigma_px, seed, &Conditions::PAPER)
+}
+
+/// [`run`] in `conditions`: frames every `dt_s` over the same 3 h, N(0,
+/// `sigma_px`^2) noise from `seed` (none at 0); the walk is part of the
+/// residual, as the star shows it.
+pub fn run_in(
+    case: &Case,
+    algorithm: &mut dyn GuideAlgorithm,
+    sigma_px: f64,
+    seed: u64,
+    conditions: &Conditions,
+) -> f64 {
+    let dt = conditions.dt_s;
+    let mut noise = (sigma_px > 0.0).then(|| Gaussian::new(seed));
+    let walk_step = conditions.walk_px_per_sqrt_min * (dt / 60.0).sqrt();
+    let (mut walk, mut walk_gen) = (0.0, Gaussian::new(seed + 1000));
+    let frames = (FRAMES as f64 * DT / dt).ceil() as usize;
     let mut applied = 0.0; // U
     let (mut sum_sq, mut count) = (0.0, 0usize);
-    for t in frame_times() {
-        let g = case.gear_error(t);
-        let residual = g - applied;
+    for t in (0..frames).map(|k| k as f64 * dt) {
+        if walk_step > 0.0 {
+            walk += walk_step * walk_gen.next();
+        }
+        let residual = case.gear_error(t) + walk - applied;
         if t >= SCORE_FROM_S {
             sum_sq += residual * residual;
             count += 1;
         }
-        let n = match gauss.as_mut() {
-            Some((sigma, gen)) => *sigma * gen.next(),
-            None => 0.0,
-        };
-        applied += algorithm.step(t, residual + n, SNR, DT);
+        let n = noise.as_mut().map_or(0.0, |g| sigma_px * g.next());
+        applied += algorithm.step(t, residual + n, SNR, dt);
     }
     (sum_sq / count as f64).sqrt()
 }
@@ -74,14 +109,15 @@ pub fn open_loop_rms(case: &Case) -> f64 {
     run(case, &mut OpenLoop, Noise::None)
 }
 
+/// [`open_loop_rms`] in `conditions`, the walk drawn from `seed`.
+pub fn open_loop_rms_in(case: &Case, seed: u64, conditions: &Conditions) -> f64 {
+    run_in(case, &mut OpenLoop, 0.0, seed, conditions)
+}
+
 /// A table's cell: one noise-free run when `sigma_px` is 0, else
 /// [`mean_noisy_rms`].
 pub fn rms_at<A: GuideAlgorithm>(case: &Case, sigma_px: f64, make: impl Fn() -> A + Sync) -> f64 {
-    if sigma_px == 0.0 {
-        run(case, &mut make(), Noise::None)
-    } else {
-        mean_noisy_rms(case, sigma_px, make)
-    }
+    rms_in(case, sigma_px, &NOISY_SEEDS, &Conditions::PAPER, make)
 }
 
 /// Mean residual RMS over [`NOISY_SEEDS`] with N(0, sigma^2) noise; `make`
@@ -93,9 +129,23 @@ pub fn mean_noisy_rms<A: GuideAlgorithm>(
     sigma_px: f64,
     make: impl Fn() -> A + Sync,
 ) -> f64 {
-    let rms: Vec<f64> = NOISY_SEEDS
+    rms_in(case, sigma_px, &NOISY_SEEDS, &Conditions::PAPER, make)
+}
+
+/// A cell in `conditions`: one run from `seeds[0]` when `sigma_px` is 0
+/// (its walk still drawn from that seed), else the mean over `seeds`, as
+/// [`mean_noisy_rms`].
+pub fn rms_in<A: GuideAlgorithm>(
+    case: &Case,
+    sigma_px: f64,
+    seeds: &[u64],
+    conditions: &Conditions,
+    make: impl Fn() -> A + Sync,
+) -> f64 {
+    let seeds = if sigma_px == 0.0 { &seeds[..1] } else { seeds };
+    let rms: Vec<f64> = seeds
         .par_iter()
-        .map(|&seed| run(case, &mut make(), Noise::Gaussian { sigma_px, seed }))
+        .map(|&seed| run_in(case, &mut make(), sigma_px, seed, conditions))
         .collect();
     rms.iter().sum::<f64>() / rms.len() as f64
 }

@@ -19,6 +19,7 @@ pub mod night;
 pub mod nights;
 pub mod noise;
 pub mod phd2_log;
+pub mod population;
 pub mod replay;
 pub mod st4_sim;
 pub mod svg;

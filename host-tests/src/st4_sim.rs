@@ -942,6 +942,19 @@ pub fn run_with(
         least_pulse_share: setup.least_pulse_share,
         ..mount_config(case)
     };
+    run_on(case, firmware, noise_px, seed, setup, config)
+}
+
+/// [`run_with`] on a mount configured as `config` (its `least_pulse_share`
+/// is the one used, not `setup`'s).
+pub fn run_on(
+    case: &Case,
+    firmware: Firmware,
+    noise_px: f64,
+    seed: u64,
+    setup: Setup,
+    config: MountConfig,
+) -> RunResult {
     let mut rig = Rig::with_mount(case, firmware, noise_px, seed, config);
     rig.set_guider(setup.guider);
     rig.set_sky(setup.sky);

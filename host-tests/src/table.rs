@@ -3,7 +3,7 @@
 //! stages) and MKGP3 (three).
 
 use crate::cases::Case;
-use crate::closed_loop;
+use crate::closed_loop::{self, Conditions};
 use crate::guide_algorithm::{GuideAlgorithm, Hysteresis};
 use crate::models::{self, Model};
 use rayon::prelude::*;
@@ -22,8 +22,9 @@ pub struct TableRow {
     pub mkgp3: f64,
 }
 
+/// What a column runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Column {
+pub enum Column {
     Reactive,
     Model(Model),
 }
@@ -39,6 +40,18 @@ fn make(column: Column) -> Box<dyn GuideAlgorithm> {
 /// noise-free run).
 fn rms(case: &Case, sigma_px: f64, column: Column) -> f64 {
     closed_loop::rms_at(case, sigma_px, || make(column))
+}
+
+/// Residual RMS of `column` on `case` in `conditions`, over `seeds`
+/// ([`closed_loop::rms_in`]).
+pub fn rms_in(
+    case: &Case,
+    sigma_px: f64,
+    seeds: &[u64],
+    conditions: &Conditions,
+    column: Column,
+) -> f64 {
+    closed_loop::rms_in(case, sigma_px, seeds, conditions, || make(column))
 }
 
 /// Compute the table, one row per case and noise level, in that order; the

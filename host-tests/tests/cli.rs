@@ -205,7 +205,15 @@ fn unknown_subcommand_is_a_usage_error() {
 fn no_subcommand_is_a_usage_error() {
     let o = guide_sim(&[]);
     assert_eq!(o.status.code(), Some(2));
-    for sub in ["table", "replay", "bench", "st4", "nights", "night"] {
+    for sub in [
+        "table",
+        "replay",
+        "bench",
+        "st4",
+        "nights",
+        "night",
+        "population",
+    ] {
         assert!(stderr(&o).contains(sub), "{}", stderr(&o));
     }
 }
@@ -304,6 +312,7 @@ fn each_subcommand_help_lists_its_options() {
                 "--truth <FILE>",
             ],
         ),
+        ("population", &["--seed <S>", "--count <N>", "--csv"]),
     ] {
         let o = guide_sim(&[sub, "--help"]);
         assert!(o.status.success(), "{sub}: {}", stderr(&o));
@@ -313,6 +322,13 @@ fn each_subcommand_help_lists_its_options() {
             assert!(out.contains(option), "{sub} --help lacks {option}:\n{out}");
         }
     }
+}
+
+#[test]
+fn a_population_of_no_mount_is_a_usage_error() {
+    let o = guide_sim(&["population", "--count", "0"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stdout(&o).is_empty());
 }
 
 #[test]
@@ -337,7 +353,15 @@ fn help_lists_the_subcommands() {
     let o = guide_sim(&["--help"]);
     assert!(o.status.success());
     let out = stdout(&o);
-    for sub in ["table", "replay", "bench", "st4", "nights", "night"] {
+    for sub in [
+        "table",
+        "replay",
+        "bench",
+        "st4",
+        "nights",
+        "night",
+        "population",
+    ] {
         assert!(out.contains(&format!("  {sub} ")), "{out}");
     }
 }

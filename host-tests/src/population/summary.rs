@@ -1,0 +1,173 @@
+//! The population's summary: per noise level, each model's ratio to the
+//! loop's own baseline (the reactive guider in the model's loop, the
+//! guider alone in the firmware's) over the mounts: median, 90th
+//! percentile, worst, and how many mounts it is worse on (ratio above 1).
+
+use super::Row;
+
+/// Which noise rows a summary line covers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Level {
+    NoiseFree,
+    /// The mount's seeing.
+    Seeing,
+}
+
+impl Level {
+    pub fn name(self) -> &'static str {
+        match self {
+            Level::NoiseFree => "0",
+            Level::Seeing => "seeing",
+        }
+    }
+
+    fn holds(self, row: &Row) -> bool {
+        (row.noise_px > 0.0) == (self == Level::Seeing)
+    }
+}
+
+/// A column over its loop's baseline.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Ratio {
+    MkgpToReactive,
+    PpecToReactive,
+    FwMkgpToGuiderOnly,
+    FwPpecToGuiderOnly,
+}
+
+impl Ratio {
+    pub const ALL: [Ratio; 4] = [
+        Ratio::MkgpToReactive,
+        Ratio::PpecToReactive,
+        Ratio::FwMkgpToGuiderOnly,
+        Ratio::FwPpecToGuiderOnly,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Ratio::MkgpToReactive => "mkgp/reactive",
+            Ratio::PpecToReactive => "ppec/reactive",
+            Ratio::FwMkgpToGuiderOnly => "fw_mkgp/guider_only",
+            Ratio::FwPpecToGuiderOnly => "fw_ppec/guider_only",
+        }
+    }
+
+    pub fn of(self, r: &Row) -> f64 {
+        match self {
+            Ratio::MkgpToReactive => r.mkgp / r.reactive,
+            Ratio::PpecToReactive => r.ppec / r.reactive,
+            Ratio::FwMkgpToGuiderOnly => r.fw_mkgp / r.guider_only,
+            Ratio::FwPpecToGuiderOnly => r.fw_ppec / r.guider_only,
+        }
+    }
+}
+
+/// One ratio at one level over the mounts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Line {
+    pub level: Level,
+    pub ratio: Ratio,
+    pub mounts: usize,
+    pub median: f64,
+    /// Nearest rank: the smallest ratio at least 90 % of the mounts reach.
+    pub p90: f64,
+    pub worst: f64,
+    pub worst_mount: usize,
+    /// Mounts on which the ratio is above 1.
+    pub worse: usize,
+}
+
+pub const CSV_HEADER: &str = "noise,ratio,mounts,median,p90,worst,worst_mount,worse";
+
+impl Line {
+    pub fn csv(&self) -> String {
+        format!(
+            "{},{},{},{:.3},{:.3},{:.3},{},{}",
+            self.level.name(),
+            self.ratio.name(),
+            self.mounts,
+            self.median,
+            self.p90,
+            self.worst,
+            self.worst_mount,
+            self.worse
+        )
+    }
+}
+
+/// A line per level and ratio (none for a level without rows).
+pub fn summarize(rows: &[Row]) -> Vec<Line> {
+    let mut lines = Vec::new();
+    for level in [Level::NoiseFree, Level::Seeing] {
+        let at: Vec<&Row> = rows.iter().filter(|r| level.holds(r)).collect();
+        if at.is_empty() {
+            continue;
+        }
+        for ratio in Ratio::ALL {
+            let mut x: Vec<(f64, usize)> = at.iter().map(|r| (ratio.of(r), r.mount)).collect();
+            x.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let n = x.len();
+            let median = if n % 2 == 1 {
+                x[n / 2].0
+            } else {
+                (x[n / 2 - 1].0 + x[n / 2].0) / 2.0
+            };
+            let (worst, worst_mount) = x[n - 1];
+            lines.push(Line {
+                level,
+                ratio,
+                mounts: n,
+                median,
+                p90: x[(n * 9).div_ceil(10) - 1].0,
+                worst,
+                worst_mount,
+                worse: x.iter().filter(|(v, _)| *v > 1.0).count(),
+            });
+        }
+    }
+    lines
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(mount: usize, noise_px: f64, mkgp: f64) -> Row {
+        Row {
+            mount,
+            noise_px,
+            open_loop: 5.0,
+            reactive: 1.0,
+            ppec: 1.0,
+            mkgp,
+            guider_only: 2.0,
+            fw_ppec: 1.0,
+            fw_mkgp: 1.0,
+        }
+    }
+
+    #[test]
+    fn order_statistics() {
+        let rows: Vec<Row> = (1..=10)
+            .map(|k| row(k, 0.0, k as f64 / 8.0))
+            .chain([row(1, 0.7, 0.5)])
+            .collect();
+        let lines = summarize(&rows);
+        assert_eq!(lines.len(), 8);
+        let l = lines[0];
+        assert_eq!(
+            (l.level, l.ratio, l.mounts),
+            (Level::NoiseFree, Ratio::MkgpToReactive, 10)
+        );
+        assert_eq!(l.median, 5.5 / 8.0);
+        assert_eq!(l.p90, 9.0 / 8.0);
+        assert_eq!((l.worst, l.worst_mount, l.worse), (10.0 / 8.0, 10, 2));
+        let fw = lines[2];
+        assert_eq!((fw.median, fw.worse), (0.5, 0));
+        let seeing = lines[4];
+        assert_eq!(
+            (seeing.level, seeing.mounts, seeing.median),
+            (Level::Seeing, 1, 0.5)
+        );
+    }
+}
