@@ -164,6 +164,21 @@ pub struct Row {
     pub fw_mkgp: f64,
 }
 
+impl Row {
+    /// The figures in the CSV's order, `open_loop` to `fw_mkgp`.
+    pub fn figures(&self) -> [f64; 7] {
+        [
+            self.open_loop,
+            self.reactive,
+            self.ppec,
+            self.mkgp,
+            self.guider_only,
+            self.fw_ppec,
+            self.fw_mkgp,
+        ]
+    }
+}
+
 /// The two rows of `mount`: noise-free, then at its seeing.
 pub fn rows(mount: &Mount) -> [Row; 2] {
     let (case, conditions, seeds) = (&mount.case, mount.conditions(), mount.seeds());
@@ -269,19 +284,10 @@ pub fn csv_header() -> String {
 
 /// A row as CSV, with its mount's parameters.
 pub fn csv_line(row: &Row, mount: &Mount) -> String {
-    let r = row;
-    let mut s = format!(
-        "{},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3}",
-        r.mount,
-        r.noise_px,
-        r.open_loop,
-        r.reactive,
-        r.ppec,
-        r.mkgp,
-        r.guider_only,
-        r.fw_ppec,
-        r.fw_mkgp
-    );
+    let mut s = format!("{},{:.3}", row.mount, row.noise_px);
+    for x in row.figures() {
+        s.push_str(&format!(",{x:.3}"));
+    }
     let m = mount;
     let [h2, h3, h4] = m.worm_harmonics;
     s.push_str(&format!(

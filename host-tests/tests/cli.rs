@@ -201,19 +201,22 @@ fn unknown_subcommand_is_a_usage_error() {
     assert_usage_error(&o, "'frobnicate'", "guide-sim <COMMAND>");
 }
 
+/// Subcommands the usage and the help must name.
+const SUBCOMMANDS: [&str; 7] = [
+    "table",
+    "replay",
+    "bench",
+    "st4",
+    "nights",
+    "night",
+    "population",
+];
+
 #[test]
 fn no_subcommand_is_a_usage_error() {
     let o = guide_sim(&[]);
     assert_eq!(o.status.code(), Some(2));
-    for sub in [
-        "table",
-        "replay",
-        "bench",
-        "st4",
-        "nights",
-        "night",
-        "population",
-    ] {
+    for sub in SUBCOMMANDS {
         assert!(stderr(&o).contains(sub), "{}", stderr(&o));
     }
 }
@@ -353,15 +356,7 @@ fn help_lists_the_subcommands() {
     let o = guide_sim(&["--help"]);
     assert!(o.status.success());
     let out = stdout(&o);
-    for sub in [
-        "table",
-        "replay",
-        "bench",
-        "st4",
-        "nights",
-        "night",
-        "population",
-    ] {
+    for sub in SUBCOMMANDS {
         assert!(out.contains(&format!("  {sub} ")), "{out}");
     }
 }

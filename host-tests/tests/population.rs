@@ -172,16 +172,10 @@ fn the_first_mounts_meet_the_goal() {
     let mut misses = Vec::new();
     for (r, m) in rows.iter().zip(mounts.iter().flat_map(|m| [m, m])) {
         assert_eq!(r.mount, m.index);
-        let figures = [
-            r.open_loop,
-            r.reactive,
-            r.ppec,
-            r.mkgp,
-            r.guider_only,
-            r.fw_ppec,
-            r.fw_mkgp,
-        ];
-        assert!(figures.iter().all(|x| x.is_finite() && *x > 0.0), "{r:?}");
+        assert!(
+            r.figures().iter().all(|x| x.is_finite() && *x > 0.0),
+            "{r:?}"
+        );
         if r.mkgp > r.reactive {
             misses.push(format!(
                 "mount {} at {:.2} px: mkgp {:.3} > reactive {:.3}",

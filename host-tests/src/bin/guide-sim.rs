@@ -1022,19 +1022,13 @@ fn cmd_population(PopulationArgs { seed, count, csv }: PopulationArgs) -> ExitCo
             if csv {
                 println!("{}", population::csv_line(r, m));
             } else {
+                let [open_loop, reactive, ppec, mkgp, guider_only, fw_ppec, fw_mkgp] = r.figures();
                 println!(
-                    "{:>5} {:>6.2} {:>9.3} {:>8.3} {:>7.3} {:>7.3} {:>11.3} {:>7.3} {:>7.3} {:>10.3} {:>10.3}  {}",
+                    "{:>5} {:>6.2} {open_loop:>9.3} {reactive:>8.3} {ppec:>7.3} {mkgp:>7.3} {guider_only:>11.3} {fw_ppec:>7.3} {fw_mkgp:>7.3} {:>10.3} {:>10.3}  {}",
                     r.mount,
                     r.noise_px,
-                    r.open_loop,
-                    r.reactive,
-                    r.ppec,
-                    r.mkgp,
-                    r.guider_only,
-                    r.fw_ppec,
-                    r.fw_mkgp,
-                    r.mkgp / r.reactive,
-                    r.fw_mkgp / r.guider_only,
+                    mkgp / reactive,
+                    fw_mkgp / guider_only,
                     population::describe(m)
                 );
             }
