@@ -8,8 +8,8 @@
 //! done with cannot disagree.
 //!
 //! - [`LearningPolicy::ask_reset`]: a model reset asked on a port, carried
-//!   out before the next frame ([`LearningPolicy::frame`]), so that it never
-//!   lands between a frame and its feed-forward.
+//!   out before the next frame ([`LearningPolicy::frame`]): the model is
+//!   the learning task's alone, a port only asks.
 //! - [`LearningPolicy::learned`]: after each frame learned, whether to save
 //!   the model now ([`SAVE_EVERY_US`] after the last periodic save, never
 //!   erasing).
