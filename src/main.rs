@@ -26,7 +26,9 @@
 //! - **Thread mode** (lowest): the learning task
 //!   ([`firmware::learning_task`]) runs the model, a `Learner<STAGES>` in a
 //!   static, once per frame, and signals the feed-forward to the guiding
-//!   task, which installs it at its next wake-up (within `RATE_UPDATE_US`).
+//!   task, which installs it at its next wake-up (within `RATE_UPDATE_US`);
+//!   it resets, saves and restores the model as the library's
+//!   `control_loop::learning::LearningPolicy` decides.
 //!   The status log ([`firmware::log`]) and the LED run here too. Everything
 //!   above preempts it, so the model never delays a pulse or a step.
 //!

@@ -22,6 +22,7 @@ pub mod phd2_log;
 pub mod population;
 pub mod replay;
 pub mod st4_sim;
+pub mod store_sim;
 pub mod svg;
 pub mod table;
 pub mod view;

@@ -3,12 +3,15 @@
 //!
 //! - **Night 1.** 3 h of guiding from a cold model; `settled` is the
 //!   pointing RMS over its hours 1-3.
-//! - **Power cycle.** The learner's model and pulse share are saved with
-//!   `Learner::snapshot`, the bytes go through [`power_cycle`] (the firmware's
-//!   store, onto a simulated flash, and back) and are restored with
-//!   `Learner::restore` into the fresh
-//!   learner of a new rig: the step counter, and with it gear time, starts
-//!   again at 0.
+//! - **Power cycle.** Night 1's firmware has a store (`store_sim`: the
+//!   firmware's store on a simulated flash), into which its learning task
+//!   saves the model as the library's `LearningPolicy` asks, every 10
+//!   minutes, and at the end serves the save asked on the port: `:~W#`, or
+//!   the park's `:hP#` with `--park`. The newest model in that flash (the
+//!   learner's model and pulse share, as `Learner::snapshot` wrote it at
+//!   the end) is restored with `Learner::restore` into the fresh learner of
+//!   a new rig booting from that flash: the step counter, and with it gear
+//!   time, starts again at 0.
 //! - **Night 2.** The gear stands at a phase drawn from the seed (uniform
 //!   over a day of gear time; the same for the three variants;
 //!   [`Night2Start::Moved`]), or where night 1 left it
@@ -25,11 +28,11 @@
 
 use crate::cases::Case;
 use crate::st4_sim::{Firmware, Rig, SEEDS};
-use embassy_futures::block_on;
+use crate::store_sim::SimStore;
+use mkgp_mount::control_loop::port_mount::StoreRequest;
 use mkgp_mount::model::snapshot::Phase;
-use mkgp_mount::mount::learner::{RECORD_FORMAT, RECORD_MAX};
-use mkgp_mount::persist::sim_flash::SimFlash;
-use mkgp_mount::persist::{Erase, Store};
+use mkgp_mount::mount::learner::RECORD_FORMAT;
+use mkgp_mount::port::mount_port::StepCounts;
 use mkgp_mount::testing::SplitMix64;
 use rayon::prelude::*;
 
@@ -56,25 +59,6 @@ pub struct Row {
     pub cold_first30: f64,
     pub restored_first30: f64,
     pub restored_index_first30: f64,
-}
-
-/// The power cycle of the saved model's bytes: what comes back at boot.
-/// They go through the firmware's own store (`mkgp_mount::persist`) onto a
-/// simulated STM32F4 flash of two 128 KiB sectors, and a new store over
-/// the same flash (the next boot) loads them back.
-pub fn power_cycle(saved: &[u8]) -> Vec<u8> {
-    const SECTOR: usize = 128 * 1024;
-    let mut flash = vec![0xFF; 2 * SECTOR];
-    let range = 0..flash.len() as u32;
-    {
-        let mut night_1 = Store::new(SimFlash::<SECTOR>::new(&mut flash), range.clone());
-        block_on(night_1.save_model(RECORD_FORMAT, saved, Erase::Allow))
-            .unwrap_or_else(|e| panic!("the model does not fit the store: {e:?}"));
-    }
-    let mut boot = Store::new(SimFlash::<SECTOR>::new(&mut flash), range);
-    block_on(boot.load_model(RECORD_FORMAT))
-        .unwrap_or_else(|e| panic!("the saved model does not load: {e:?}"))
-        .to_vec()
 }
 
 /// Where the gear stands when night 2 starts.
@@ -105,13 +89,15 @@ pub fn night_2_phase(seed: u64) -> f64 {
 }
 
 /// A night of `length_s` on the MKGP firmware, scored from `score_from_s`,
-/// the gear at `gear_phase_s`, the model restored from `restore` if given.
+/// the gear at `gear_phase_s`. Its firmware boots from `boot`'s store,
+/// restoring its newest model with the phase given; without, from an
+/// erased store and a cold model.
 fn night(
     case: &Case,
     noise_px: f64,
     seed: u64,
     gear_phase_s: f64,
-    restore: Option<(&[u8], Phase)>,
+    boot: Option<(SimStore, Phase)>,
     length_s: f64,
     score_from_s: f64,
 ) -> Rig {
@@ -119,12 +105,18 @@ fn night(
     rig.gear_phase_s = gear_phase_s;
     rig.lock_arcsec = rig.pointing_arcsec();
     rig.score_window_s = (score_from_s, f64::INFINITY);
-    if let Some((bytes, phase)) = restore {
-        let learner = rig.mkgp_learner().expect("the MKGP firmware has a learner");
-        learner
-            .restore(bytes, RECORD_FORMAT, phase)
-            .unwrap_or_else(|e| panic!("restore: {e:?}"));
-    }
+    let store = match boot {
+        Some((mut store, phase)) => {
+            let bytes = store.load_model().expect("night 1's model loads");
+            let learner = rig.mkgp_learner().expect("the MKGP firmware has a learner");
+            learner
+                .restore(&bytes, RECORD_FORMAT, phase)
+                .unwrap_or_else(|e| panic!("restore: {e:?}"));
+            store
+        }
+        None => SimStore::default(),
+    };
+    rig.set_store(store);
     rig.run_until((length_s * 1e6) as u64);
     rig
 }
@@ -133,14 +125,16 @@ fn night(
 /// the phase.
 fn one_seed(case: &Case, noise_px: f64, seed: u64, start: Night2Start) -> [f64; 4] {
     let mut first = night(case, noise_px, seed, 0.0, None, NIGHT_1_S, SETTLED_FROM_S);
-    let mut saved = [0u8; RECORD_MAX];
-    let learner = first
-        .mkgp_learner()
-        .expect("the MKGP firmware has a learner");
-    let n = learner
-        .snapshot(&mut saved)
-        .unwrap_or_else(|e| panic!("snapshot: {e:?}"));
-    let bytes = power_cycle(&saved[..n]);
+    let request = match start {
+        Night2Start::Moved => StoreRequest::Model { port: 0 },
+        Night2Start::Parked => StoreRequest::Park(StepCounts {
+            ra: first.ra_steps(),
+            dec: first.dec_steps(),
+        }),
+    };
+    let outcome = first.ask_store(request);
+    assert!(outcome.saved, "night 1's model not saved: {outcome:?}");
+    let flash = first.store().expect("night 1 has a store").clone();
     // Night 1's gear time at its end: where a park leaves the gear.
     let end_1 = first.ra_steps() as f64 / first.mount.sidereal_ra_steps_per_s_f64();
     let (phase, known_offset) = match start {
@@ -152,8 +146,8 @@ fn one_seed(case: &Case, noise_px: f64, seed: u64, start: Night2Start) -> [f64; 
     };
     let seed_2 = seed + NIGHT_2_NOISE_SEED;
     let second = |restore: Option<Phase>| {
-        let restore = restore.map(|p| (bytes.as_slice(), p));
-        night(case, noise_px, seed_2, phase, restore, FIRST_S, 0.0).score()
+        let boot = restore.map(|p| (flash.clone(), p));
+        night(case, noise_px, seed_2, phase, boot, FIRST_S, 0.0).score()
     };
     let known = match start {
         Night2Start::Moved => Phase::Worm {

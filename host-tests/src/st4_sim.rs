@@ -24,8 +24,11 @@
 //! - **Learning task.** Takes one frame at a time from that queue and runs
 //!   `Learner::learn`; its feed-forward is ready [`INFERENCE_US`] later (the
 //!   model's time on the target) and is installed at the guiding task's
-//!   next wake-up. Guider only: no learner, the firmware tracks and obeys
-//!   the pulses.
+//!   next wake-up. Around the frames it does what the library's
+//!   `LearningPolicy` decides, as the board's does: a reset asked on a port
+//!   before the next frame, and with a store ([`Rig::set_store`]) the
+//!   periodic saves and the ports' requests. Guider only: no learner, the
+//!   firmware tracks and obeys the pulses.
 //! - **Camera.** Back-to-back exposures of 2 s ending at t = 2, 4, ... s;
 //!   the measurement is the mean of the pointing over the exposure (10 ms
 //!   samples), minus the lock position, plus N(0, noise) from the paper's
@@ -46,8 +49,12 @@
 use crate::cases::Case;
 use crate::guide_algorithm::{GuideAlgorithm, Hysteresis};
 use crate::noise::Gaussian;
+use crate::store_sim::SimStore;
+use mkgp_mount::control_loop::learning::{LearningPolicy, StoreStep};
 use mkgp_mount::control_loop::port_motion::PortMotionCounters;
-use mkgp_mount::control_loop::port_mount::{LearnedFrame, LearnerSummary, PortMount, PortState};
+use mkgp_mount::control_loop::port_mount::{
+    LearnedFrame, LearnerSummary, PortMount, PortState, StoreOutcome, StoreRequest,
+};
 use mkgp_mount::control_loop::st4_feed::{EdgeQueue, EdgeSource, RawEdge};
 use mkgp_mount::control_loop::stepping::AxisStepper;
 use mkgp_mount::control_loop::{ControlLoop, FrameRecord};
@@ -55,8 +62,9 @@ use mkgp_mount::model::guider::Faults;
 use mkgp_mount::mount::config::{Mount, MountConfig, SIDEREAL_ARCSEC_PER_S};
 use mkgp_mount::mount::frame::{Frame, Rates};
 use mkgp_mount::mount::guiding::{Guiding, GuidingCounters, FRAME_QUEUE};
-use mkgp_mount::mount::learner::{Learner, LearnerCounters, FIRMWARE_STAGES};
+use mkgp_mount::mount::learner::{Learner, LearnerCounters, FIRMWARE_STAGES, RECORD_MAX};
 use mkgp_mount::mount::st4::{Line, St4Counters};
+use mkgp_mount::mount::worm_index::WormIndex;
 use mkgp_mount::port::mount_port::StepCounts;
 use mkgp_mount::port::{Interpreter, ReplySink};
 use rayon::prelude::*;
@@ -215,6 +223,19 @@ impl AnyLearner {
             AnyLearner::Mkgp(l) => l.reset(),
         }
     }
+
+    /// The model's record for the store: none for the guider alone, nor
+    /// while the learner refuses it (a restored model not yet placed).
+    fn snapshot(&self) -> Option<Vec<u8>> {
+        let mut out = vec![0; RECORD_MAX];
+        let n = match self {
+            AnyLearner::None => return None,
+            AnyLearner::One(l) => l.snapshot(&mut out),
+            AnyLearner::Mkgp(l) => l.snapshot(&mut out),
+        };
+        out.truncate(n.ok()?);
+        Some(out)
+    }
 }
 
 /// The mount used for a case: the default mount with the case's worm.
@@ -266,9 +287,11 @@ impl EdgeSource for DueEdges<'_> {
     }
 }
 
-/// The learning task: one frame at a time, each taking [`INFERENCE_US`].
+/// The learning task: one frame at a time, each taking [`INFERENCE_US`],
+/// and what the library's policy asks around them (a reset, a save).
 struct LearningTask {
     learner: AnyLearner,
+    policy: LearningPolicy<SimStore>,
     /// The frame queue between the tasks.
     frames: VecDeque<FrameRecord>,
     /// The frame being learned and when its feed-forward is ready.
@@ -296,13 +319,22 @@ impl LearningTask {
         }
         if let Some(r) = self.frames.pop_front() {
             record.push(r.frame);
+            if self.policy.frame().reset_first {
+                self.learner.reset();
+            }
             let before = self.learner.counters().learned;
             let frame = self.learner.learn(r.frame);
             learned.push(FrameLearned {
                 at_us: now_us,
                 learned: self.learner.counters().learned != before,
             });
-            self.busy = Some((now_us + INFERENCE_US, frame));
+            let done_us = now_us + INFERENCE_US;
+            if let Some(save) = self.policy.learned(done_us) {
+                let model = self.learner.snapshot();
+                save.storage
+                    .save_model(model.as_deref(), save.erase, save.index_pass);
+            }
+            self.busy = Some((done_us, frame));
         }
     }
 
@@ -443,6 +475,7 @@ impl Rig {
             case: case.clone(),
             learning: LearningTask {
                 learner,
+                policy: LearningPolicy::without_store(),
                 frames: VecDeque::new(),
                 busy: None,
                 ready: None,
@@ -587,10 +620,42 @@ impl Rig {
         self.learned.take()
     }
 
-    /// A model reset asked on a command port: the board's learning task
-    /// carries it out before its next frame.
+    /// A model reset asked on a command port: the learning task carries it
+    /// out before its next frame, as on the board.
     pub fn reset_model(&mut self) {
-        self.learning.learner.reset();
+        self.learning.policy.ask_reset();
+    }
+
+    /// Gives the firmware `store` from now on (an erased one, or what an
+    /// earlier rig left in it): the learning task saves the model into it
+    /// as the policy asks (every `SAVE_EVERY_US`, never erasing) and
+    /// serves the ports' requests ([`Rig::ask_store`]). Not parked: the
+    /// rig's counters start at 0.
+    pub fn set_store(&mut self, store: SimStore) {
+        let index = WormIndex::new(&self.mount);
+        self.learning.policy = LearningPolicy::with_store(store, false, index, self.now_us);
+    }
+
+    /// What [`Rig::set_store`] gave, with what was saved into it since.
+    pub fn store(&mut self) -> Option<&mut SimStore> {
+        self.learning.policy.storage()
+    }
+
+    /// A port's request to the store, served now (the board's learning
+    /// task serves it between frames; here a frame is learned at once).
+    pub fn ask_store(&mut self, request: StoreRequest) -> StoreOutcome {
+        let learning = &mut self.learning;
+        match learning.policy.store_request(request) {
+            StoreStep::Serve {
+                storage,
+                request,
+                index_pass,
+            } => {
+                let model = learning.learner.snapshot();
+                storage.serve(model.as_deref(), request, index_pass)
+            }
+            StoreStep::Refuse(outcome) => outcome,
+        }
     }
 
     pub fn learner_summary(&self) -> LearnerSummary {

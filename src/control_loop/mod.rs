@@ -13,10 +13,15 @@
 //! - [`stepping::AxisStepper`]: the step tick of one axis.
 //! - [`storm::StormGuard`]: each ST4 line's edge budget, which the board's
 //!   interrupt asks before it queues an edge.
+//! - [`learning::LearningPolicy`]: the learning task's policy (the model's
+//!   reset, its periodic saves, its restore at the worm index's first pass,
+//!   the ports' requests to the store), which the board's learning task and
+//!   the simulator's carry out.
 //!
 //! The learner (the model) runs elsewhere, at lower priority: it takes the
 //! frames and returns a [`FeedForward`], which the next wake-up installs.
 
+pub mod learning;
 pub mod port_motion;
 pub mod port_mount;
 pub mod st4_feed;

@@ -5,6 +5,7 @@ use core::sync::atomic::Ordering;
 
 use static_cell::StaticCell;
 
+use mkgp_mount::control_loop::learning::{LearningPolicy, StoreStep};
 use mkgp_mount::control_loop::port_mount::{LearnedFrame, StoreOutcome, StoreRequest};
 use mkgp_mount::control_loop::FrameRecord;
 use mkgp_mount::mount::config::Mount;
@@ -12,8 +13,7 @@ use mkgp_mount::mount::learner::Learner;
 use mkgp_mount::mount::worm_index::WormIndex;
 
 use embassy_futures::select::{select3, Either3};
-use embassy_time::{Duration, Instant};
-use mkgp_mount::persist::{Erase, StoreCounters};
+use embassy_time::Instant;
 
 use crate::firmware::log;
 use crate::firmware::shared::{
@@ -23,12 +23,6 @@ use crate::firmware::shared::{
 use crate::firmware::storage::{self, FirmwareStore, SnapshotBuffer};
 use crate::STAGES;
 
-/// How often the model is saved while it learns. With the three-stage
-/// model's 8 KiB snapshot a storage page takes 14 saves: 2.3 hours of
-/// guiding before a save would need an erase, which these saves never do
-/// (docs/persistence.md has the wear arithmetic at this cadence).
-const SAVE_EVERY: Duration = Duration::from_secs(600);
-
 /// The store and what the learning task needs to save into it.
 pub struct Storage {
     pub store: &'static mut FirmwareStore,
@@ -37,6 +31,17 @@ pub struct Storage {
     pub parked: bool,
     /// The worm-index sensor's passes (none if no sensor is fitted).
     pub index: WormIndex,
+}
+
+/// What the learning task's policy lends back for each save or restore.
+struct Flash {
+    store: &'static mut FirmwareStore,
+    buf: &'static mut SnapshotBuffer,
+}
+
+/// The monotonic clock the policy's saves are timed on, µs.
+fn now_us() -> u64 {
+    Instant::now().as_micros()
 }
 
 /// The model's storage: a static, handed out once.
@@ -60,19 +65,25 @@ enum Event {
 
 /// Restores the saved model, then runs the model once per guide frame
 /// (the longest thing that runs here) and hands the learned frame with its
-/// feed-forward to the guiding task. A model reset asked on a port is
-/// carried out before the next frame; what a port asks of the store, at
-/// once; every [`SAVE_EVERY`] of learning the model is saved without
-/// erasing. At the worm-index sensor's first pass, unless a park gave the
-/// phase, the saved model is restored again with the worm's phase from
-/// the sensor. Everything else preempts it.
+/// feed-forward to the guiding task. When to reset, save and restore the
+/// model and what to do with a port's request to the store is the
+/// library's [`LearningPolicy`]; this task carries it out (the flash, the
+/// channels). Everything else preempts it.
 #[embassy_executor::task]
-pub async fn learning_task(learner: &'static mut Learner<STAGES>, mut storage: Option<Storage>) {
-    if let Some(s) = storage.as_mut() {
-        let origin = storage::restore_model(s.store, learner, s.parked).await;
-        MODEL_ORIGIN.lock(|o| o.set(origin));
-    }
-    let mut last_save = Instant::now();
+pub async fn learning_task(learner: &'static mut Learner<STAGES>, storage: Option<Storage>) {
+    let mut policy = match storage {
+        Some(Storage {
+            store,
+            buf,
+            parked,
+            index,
+        }) => {
+            let origin = storage::restore_model(store, learner, parked).await;
+            MODEL_ORIGIN.lock(|o| o.set(origin));
+            LearningPolicy::with_store(Flash { store, buf }, parked, index, now_us())
+        }
+        None => LearningPolicy::without_store(),
+    };
     let mut logged = log::Logged::NONE;
     loop {
         let event = match select3(
@@ -89,36 +100,34 @@ pub async fn learning_task(learner: &'static mut Learner<STAGES>, mut storage: O
         let msg = match event {
             Event::Frame(msg) => msg,
             Event::Store(request) => {
-                let outcome = match storage.as_mut() {
-                    Some(s) => {
-                        let pass = s.index.last_pass();
-                        storage::serve(s.store, learner, s.buf, request, pass).await
-                    }
-                    // Not asked without a store (`PortState::store`).
-                    None => StoreOutcome {
-                        reply_to: request.reply_to(),
-                        saved: false,
-                        counters: StoreCounters::default(),
-                    },
+                let outcome = match policy.store_request(request) {
+                    StoreStep::Serve {
+                        storage: flash,
+                        request,
+                        index_pass,
+                    } => storage::serve(flash.store, learner, flash.buf, request, index_pass).await,
+                    StoreStep::Refuse(outcome) => outcome,
                 };
                 StoreDone::report(outcome);
                 RECEIVED.signal(());
                 continue;
             }
             Event::Index(ra_steps) => {
-                if let Some(s) = storage.as_mut() {
-                    if s.index.edge(ra_steps) && s.index.passes() == 1 && !s.parked {
-                        if let Some(origin) =
-                            storage::restore_at_index(s.store, learner, &s.index, ra_steps).await
-                        {
-                            MODEL_ORIGIN.lock(|o| o.set(origin));
-                        }
+                if let Some(restore) = policy.index_edge(ra_steps) {
+                    let flash = restore.storage;
+                    if let Some(origin) =
+                        storage::restore_at_index(flash.store, learner, restore.pass).await
+                    {
+                        MODEL_ORIGIN.lock(|o| o.set(origin));
                     }
                 }
                 continue;
             }
         };
         if RESET_MODEL.try_take().is_some() {
+            policy.ask_reset();
+        }
+        if policy.frame().reset_first {
             learner.reset();
             defmt::warn!("model reset, as asked on the command port");
         }
@@ -126,18 +135,17 @@ pub async fn learning_task(learner: &'static mut Learner<STAGES>, mut storage: O
         FRAMES_LEARNED.fetch_add(1, Ordering::Relaxed);
         LEARNED.signal(LearnedFrame::of(learner, &msg.frame, ff));
         log::frame(learner, &msg, &ff, &mut logged);
-        if let Some(s) = storage.as_mut() {
-            if last_save.elapsed() >= SAVE_EVERY {
-                last_save = Instant::now();
-                let pass = s.index.last_pass();
-                let saved = storage::save_model(s.store, learner, s.buf, Erase::Defer, pass).await;
-                // For the store's counters on the ports.
-                StoreDone::report(StoreOutcome {
-                    reply_to: None,
-                    saved,
-                    counters: s.store.counters(),
-                });
-            }
+        if let Some(save) = policy.learned(now_us()) {
+            let flash = save.storage;
+            let saved =
+                storage::save_model(flash.store, learner, flash.buf, save.erase, save.index_pass)
+                    .await;
+            // For the store's counters on the ports.
+            StoreDone::report(StoreOutcome {
+                reply_to: None,
+                saved,
+                counters: flash.store.counters(),
+            });
         }
     }
 }

@@ -11,11 +11,11 @@ use core::sync::atomic::{AtomicU32, Ordering};
 use static_cell::StaticCell;
 
 use hal::storage::StorageFlash;
+use mkgp_mount::control_loop::learning::IndexPass;
 use mkgp_mount::control_loop::port_mount::{StoreOutcome, StoreRequest};
 use mkgp_mount::model::snapshot::{Phase, SnapshotError};
 use mkgp_mount::mount::config::MountConfig;
 use mkgp_mount::mount::learner::{Learner, RECORD_FORMAT, RECORD_MAX};
-use mkgp_mount::mount::worm_index::WormIndex;
 use mkgp_mount::persist::store::SAVE_ATTEMPTS;
 use mkgp_mount::persist::{Erase, LoadError, Park, SaveError, Store};
 use mkgp_mount::port::mount_port::ModelOrigin;
@@ -187,20 +187,17 @@ pub async fn restore_model(
     }
 }
 
-/// At the worm-index sensor's first pass, at `ra_steps`: the saved model
-/// again, with the worm's phase from the pass saved with it. `None` (and
-/// the model as it is) if there is no saved pass or model.
+/// At the worm-index sensor's first `pass`: the saved model again, with
+/// the worm's phase from the pass saved with it. `None` (and the model as
+/// it is) if there is no saved pass or model.
 pub async fn restore_at_index(
     store: &mut FirmwareStore,
     learner: &mut Learner<STAGES>,
-    index: &WormIndex,
-    ra_steps: i64,
+    pass: IndexPass,
 ) -> Option<ModelOrigin> {
     // Loads may repair a page a power cut left (an erase): counted too.
     let saved_pass = flash_operation(store.load_index()).await.ok()?;
-    let phase = Phase::Worm {
-        gear_time_offset_s: index.offset_s(saved_pass, ra_steps),
-    };
+    let phase = pass.phase(saved_pass);
     let bytes = flash_operation(store.load_model(RECORD_FORMAT))
         .await
         .ok()?;
