@@ -132,10 +132,11 @@ struct PhaseSearch<const N: usize> {
     stages: Option<(usize, Harmonics<N>)>,
 }
 
-/// A restore in progress, kept apart from the guider it restores: the
-/// grid waiting for its first frame, the phase search and the held
-/// spectrum. It owns that state; each call borrows the parts of the guider
-/// it reads or changes (the grid, the work buffer, the stages, the fit).
+/// A restore in progress: the grid waiting for its first frame, the phase
+/// search and the held spectrum. It owns that state, and each call borrows
+/// the parts of the guider it reads or changes (the grid, the work buffer,
+/// the stages, the fit), so that what a restore can touch is in its
+/// signatures rather than anywhere in the guider.
 pub(super) struct Restore<const N: usize> {
     /// A restored grid waiting for the first frame to be placed.
     resume: Option<Resume>,
@@ -187,7 +188,8 @@ pub(super) fn check<S: Scalar, const N: usize>(
 }
 
 impl<const N: usize> Restore<N> {
-    /// Nothing restored, in place (`crate::model::in_place`).
+    /// Nothing restored, in place as the guider that holds it
+    /// (`crate::model::in_place`).
     pub(super) fn init(slot: &mut MaybeUninit<Self>) -> &mut Self {
         init_fields!(slot, Self {
             resume = None,
