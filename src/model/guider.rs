@@ -21,6 +21,7 @@ use crate::model::gp::kernel::Kernel;
 use crate::model::in_place::{build, fill, init_fields};
 use crate::model::numeric::clamp;
 use crate::model::numeric::scalar::Scalar;
+use crate::model::snapshot::{Phase, Snapshot, SnapshotError};
 use crate::model::spectral::discovery::Discovery;
 use crate::model::spectral::fft::FFT_LEN;
 use crate::model::spectral::period::PeriodTracker;
@@ -31,6 +32,7 @@ mod restore;
 mod trust;
 
 use control_law::Law;
+use restore::{Fit, Restore, Stages};
 use trust::Trust;
 
 /// Frames of proportional control without learning after a dither.
@@ -197,13 +199,9 @@ pub struct Guider<S: Scalar, const N: usize = 2> {
     /// model has earned it by measurement (`trust`).
     trust: Trust,
     faults: Faults,
-    /// A restored grid waiting for the first frame to be placed
-    /// (`restore`).
-    resume: Option<restore::Resume>,
-    /// Restored data waiting for the phase search (`restore`).
-    phase_search: Option<restore::PhaseSearch<N>>,
-    /// A restored grid whose spectrum is not read yet (`restore`).
-    spectrum_hold: Option<restore::SpectrumHold>,
+    /// What a restore (or a jump of the clock) leaves waiting for the new
+    /// data: the first frame, the phase search, the held spectrum.
+    restore: Restore<N>,
 }
 
 // The model-state budget (docs/reference.md, Goals): the board's 128 KiB of
@@ -266,9 +264,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             blend = 0.0,
             trust = Trust::new(),
             faults = Faults::default(),
-            resume = None,
-            phase_search = None,
-            spectrum_hold = None,
+            restore in Restore::init,
         })
     }
 
@@ -284,9 +280,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             t.disagreement = 1.0;
         }
         self.restart_frames();
-        self.resume = None;
-        self.phase_search = None;
-        self.spectrum_hold = None;
+        self.restore.clear();
     }
 
     /// The per-frame state as before a first frame: the clock starts again
@@ -463,6 +457,76 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         self.dither_frames_left = DITHER_FRAMES;
     }
 
+    /// Write the learned state (see [`crate::model::snapshot`]) into `out`,
+    /// at most [`SNAPSHOT_MAX`](crate::model::snapshot::SNAPSHOT_MAX)
+    /// bytes for three stages; returns the length written. Not a per-frame
+    /// call: it reads the newest
+    /// [`SNAPSHOT_CELLS`](crate::model::snapshot::SNAPSHOT_CELLS) cells.
+    /// Refused ([`SnapshotError::Placing`]) while a phase search is pending.
+    pub fn snapshot(&self, out: &mut [u8]) -> Result<usize, SnapshotError> {
+        let stages = Stages {
+            trackers: &self.trackers,
+            gates: &self.gates,
+        };
+        self.restore
+            .snapshot(&self.grid, stages, &self.discovery, self.clock(), out)
+    }
+
+    /// Take the learned state back from `snapshot` (checked by
+    /// [`Snapshot::parse`]): the periods, stages and gates, and the cells,
+    /// placed at the first frame as `phase` allows and, unless every
+    /// stage's phase is known, again by the phase search a little later
+    /// (half a worm period; with the worm's phase known, a quarter, or a
+    /// twentieth once the other stages are fitted apart). The
+    /// fault counters stay. A snapshot of another stage count, or one
+    /// outside the bounds this configuration learns within, is refused and
+    /// nothing changes.
+    pub fn restore(&mut self, snapshot: &Snapshot<'_>, phase: Phase) -> Result<(), SnapshotError> {
+        restore::check::<S, N>(&self.config, snapshot)?;
+        self.reset();
+        self.restore.take_back(
+            snapshot,
+            phase,
+            &mut self.grid,
+            &mut self.trackers,
+            &mut self.gates,
+            &mut self.discovery,
+        );
+        Ok(())
+    }
+
+    /// The clock is about to jump ahead with nothing measured in between
+    /// (the port slews the axis: the gears turn, no frame is taken). What
+    /// was learned is kept and placed before the next frame as a restore
+    /// at a known phase places a snapshot: where the clock puts it if that
+    /// is within eight worm periods, else as near as every
+    /// stage's phase allows, the gap left dark; its level then meets the
+    /// first measured frame. Pushed across the jump instead, the cells
+    /// would be filled by interpolating the last frame to the next (as
+    /// measured data), or, frame by frame through a long slew, push the
+    /// learned data out of the ring. Does nothing while a placement is
+    /// pending or before anything was learned.
+    pub fn jumped(&mut self) {
+        if self.frames == 0 {
+            return;
+        }
+        let clock = self.clock();
+        if self
+            .restore
+            .jumped(&mut self.grid, &mut self.scratch, clock)
+        {
+            self.restart_frames();
+        }
+    }
+
+    /// The caller's clock at a gear time (s since the start, plus the
+    /// dither offset): where a snapshot puts the saved data on the clock.
+    /// A copy, so that the grid can be borrowed beside it.
+    fn clock(&self) -> impl Fn(f64) -> f64 {
+        let (start_time, dither_offset) = (self.start_time, self.dither_offset);
+        move |t| t + start_time - dither_offset
+    }
+
     /// The model's part of a frame with a measurement, shared by
     /// [`frame`](Self::frame) and [`observe`](Self::observe): returns the
     /// frame's gear time and, past the warm-up, the predicted change of the
@@ -607,7 +671,34 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     /// `gear`: the frame's gear error, if measured.
     fn start_clock(&mut self, time_s: f64, gear: Option<f64>) {
         self.last_time = time_s;
-        self.start_time = time_s - self.resume_restored(time_s, gear);
+        let stages = Stages {
+            trackers: &self.trackers,
+            gates: &self.gates,
+        };
+        let fit = Fit {
+            gp: &mut self.gp,
+            kernel: &mut self.kernel,
+        };
+        let resumed = self.restore.resume_restored(
+            time_s,
+            gear,
+            &mut self.grid,
+            &mut self.scratch,
+            stages,
+            fit,
+        );
+        let mut gear_time = 0.0;
+        if let Some(resumed) = resumed {
+            // Placed at a known phase, the restored data predicts from this
+            // frame on: no warm-up (its 20 s of the guider alone were a
+            // fifth of the excess over settled of a parked night's first
+            // 30 min).
+            if resumed.placed {
+                self.warm_up_frames = 0;
+            }
+            gear_time = resumed.gear_time_s;
+        }
+        self.start_time = time_s - gear_time;
     }
 
     /// Gear time of the current frame: the midpoint of the interval since
@@ -648,7 +739,14 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     /// Returns true if the fit failed (the frame then falls back to the
     /// reactive term); with too little data the last fit, if any, is kept.
     fn track_and_fit(&mut self, centre: f64, timestamp: f64) -> bool {
-        if self.phase_search_pending() {
+        let stages = Stages {
+            trackers: &self.trackers,
+            gates: &self.gates,
+        };
+        if self
+            .restore
+            .phase_search_pending(&mut self.grid, &mut self.scratch, stages)
+        {
             return true;
         }
         let Some(origin) = self.grid.origin() else {
@@ -659,7 +757,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         }
         if self.config.compute_period
             && timestamp > self.config.periods_for_estimation * self.trackers[0].period_s
-            && !self.spectrum_held()
+            && !self.restore.spectrum_held(&self.grid, stages)
         {
             if self.peaks_stale {
                 self.peaks_stale = false;
@@ -679,7 +777,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             self.discovery.step(&mut self.trackers, &mut self.gates);
         }
         let periods = self.trackers.map(|t| t.period_s);
-        self.kernel = Kernel::new(&periods, &self.fit_gates());
+        self.kernel = Kernel::new(&periods, &self.restore.fit_gates(&self.gates));
         let failed = self
             .gp
             .infer(&self.grid, &self.kernel, centre - origin, &mut self.scratch)

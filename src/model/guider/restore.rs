@@ -17,12 +17,17 @@
 //! the saved cells is taken out and put back at its own phase
 //! (`harmonics`).
 
-use super::{Guider, DARK_VARIANCE};
-use crate::model::gp::grid::{CELL_S, GRID_CELLS};
+use core::mem::MaybeUninit;
+
+use super::{GuiderConfig, DARK_VARIANCE};
+use crate::model::gp::grid::{Grid, CELL_S, GRID_CELLS};
+use crate::model::gp::infer::Gp;
 use crate::model::gp::kernel::Kernel;
+use crate::model::in_place::init_fields;
 use crate::model::numeric::scalar::Scalar;
 use crate::model::snapshot::{encode, Phase, SavedStage, Snapshot, SnapshotError, SNAPSHOT_CELLS};
-use crate::model::spectral::discovery::beats;
+use crate::model::spectral::discovery::{beats, Discovery};
+use crate::model::spectral::fft::FFT_LEN;
 use crate::model::spectral::period::PeriodTracker;
 
 mod bounds;
@@ -83,7 +88,7 @@ const HOLD_BEATS: f64 = 2.5;
 /// gates stay as saved until the data resolves its stages
 /// ([`HOLD_BEATS`]) or fills the grid.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct SpectrumHold {
+struct SpectrumHold {
     /// Cells without data the placement left between the saved data and
     /// the new, s: no evidence of any line.
     gap_s: f64,
@@ -91,7 +96,7 @@ pub(super) struct SpectrumHold {
 
 /// A restored grid waiting for the first frame.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Resume {
+struct Resume {
     /// The new clock's reading at the restored grid's time 0 (with the
     /// phase unknown, as if the offset were 0).
     grid_zero_s: f64,
@@ -114,7 +119,7 @@ enum Place {
 /// [`PHASE_SEARCH_PERIODS`] of it are in ([`WORM_PHASE_SEARCH_PERIODS`]
 /// with the worm's phase known).
 #[derive(Clone, Copy, Debug)]
-pub(super) struct PhaseSearch<const N: usize> {
+struct PhaseSearch<const N: usize> {
     new_from: usize,
     /// Worm periods of new data the search waits for.
     wait_periods: f64,
@@ -127,60 +132,136 @@ pub(super) struct PhaseSearch<const N: usize> {
     stages: Option<(usize, Harmonics<N>)>,
 }
 
-impl<S: Scalar, const N: usize> Guider<S, N> {
-    /// Write the learned state (see [`crate::model::snapshot`]) into `out`,
-    /// at most [`SNAPSHOT_MAX`](crate::model::snapshot::SNAPSHOT_MAX)
-    /// bytes for three stages; returns the length written. Not a per-frame
-    /// call: it reads the newest [`SNAPSHOT_CELLS`] cells. Refused
-    /// ([`SnapshotError::Placing`]) while a phase search is pending.
-    pub fn snapshot(&self, out: &mut [u8]) -> Result<usize, SnapshotError> {
+/// A restore in progress: the grid waiting for its first frame, the phase
+/// search and the held spectrum. It owns that state, and each call borrows
+/// the parts of the guider it reads or changes (the grid, the work buffer,
+/// the stages, the fit), so that what a restore can touch is in its
+/// signatures rather than anywhere in the guider.
+pub(super) struct Restore<const N: usize> {
+    /// A restored grid waiting for the first frame to be placed.
+    resume: Option<Resume>,
+    /// Restored data waiting for the phase search.
+    phase_search: Option<PhaseSearch<N>>,
+    /// A restored grid whose spectrum is not read yet.
+    spectrum_hold: Option<SpectrumHold>,
+}
+
+/// The guider's stages as a restore reads them: each one's tracker and
+/// gate.
+#[derive(Clone, Copy)]
+pub(super) struct Stages<'a, const N: usize> {
+    pub(super) trackers: &'a [PeriodTracker; N],
+    pub(super) gates: &'a [f64; N],
+}
+
+/// The guider's fit, which the first frame after a restore uses to meet
+/// the new data's level: the inference and its kernel.
+pub(super) struct Fit<'a, S: Scalar, const N: usize> {
+    pub(super) gp: &'a mut Gp<S>,
+    pub(super) kernel: &'a mut Kernel<S, N>,
+}
+
+/// The first frame after a restore, on the restored grid.
+pub(super) struct Resumed {
+    /// The frame's gear time.
+    pub(super) gear_time_s: f64,
+    /// The restored data was placed at a known phase (`Phase::Known`,
+    /// `Phase::Worm`), not left to the phase search: its data is there,
+    /// and the model can predict from this frame on.
+    pub(super) placed: bool,
+}
+
+/// Whether `snapshot` can be restored into a guider of `N` stages
+/// configured by `config`: not if it holds another stage count, or values
+/// outside the bounds this configuration learns within (`bounds`).
+pub(super) fn check<S: Scalar, const N: usize>(
+    config: &GuiderConfig<S>,
+    snapshot: &Snapshot<'_>,
+) -> Result<(), SnapshotError> {
+    if snapshot.stages() != N {
+        return Err(SnapshotError::Stages {
+            saved: u16::try_from(snapshot.stages()).unwrap_or(u16::MAX),
+            model: u16::try_from(N).unwrap_or(u16::MAX),
+        });
+    }
+    bounds::check(config, snapshot)
+}
+
+impl<const N: usize> Restore<N> {
+    /// Nothing restored, in place as the guider that holds it
+    /// (`crate::model::in_place`).
+    pub(super) fn init(slot: &mut MaybeUninit<Self>) -> &mut Self {
+        init_fields!(slot, Self {
+            resume = None,
+            phase_search = None,
+            spectrum_hold = None,
+        })
+    }
+
+    /// Nothing restored: the guider's data was dropped.
+    pub(super) fn clear(&mut self) {
+        self.resume = None;
+        self.phase_search = None;
+        self.spectrum_hold = None;
+    }
+
+    /// [`Guider::snapshot`](super::Guider::snapshot) of `grid`, `stages`
+    /// and `discovery`, its time on `clock` (the caller's clock at a gear
+    /// time).
+    pub(super) fn snapshot<S: Scalar>(
+        &self,
+        grid: &Grid<S>,
+        stages: Stages<'_, N>,
+        discovery: &Discovery<N>,
+        clock: impl Fn(f64) -> f64,
+        out: &mut [u8],
+    ) -> Result<usize, SnapshotError> {
         if self.phase_search.is_some() {
             return Err(SnapshotError::Placing);
         }
-        let stages: [SavedStage; N] = core::array::from_fn(|s| {
-            let (found, ratio, frames_found) = self.discovery.saved(s);
+        let saved: [SavedStage; N] = core::array::from_fn(|s| {
+            let (found, ratio, frames_found) = discovery.saved(s);
             SavedStage {
-                period_s: self.trackers[s].period_s,
-                disagreement: self.trackers[s].disagreement,
-                gate: self.gates[s],
+                period_s: stages.trackers[s].period_s,
+                disagreement: stages.trackers[s].disagreement,
+                gate: stages.gates[s],
                 ratio,
                 frames_found,
                 found,
             }
         });
-        let len = self.grid.len();
+        let len = grid.len();
         let skip = len.saturating_sub(SNAPSHOT_CELLS);
         let cells = (skip..len).map(|i| {
-            let (gear, variance) = self.grid.cell(i);
+            let (gear, variance) = grid.cell(i);
             (gear.to_f64() as f32, variance.to_f64() as f32)
         });
         // The saved grid's time 0 is where its first cell starts.
-        let zero = self.grid.cell_time(skip) + 0.5 * CELL_S;
-        encode(&stages, self.clock_at_grid_time(zero), cells, out)
+        let zero = grid.cell_time(skip) + 0.5 * CELL_S;
+        encode(
+            &saved,
+            self.clock_at_grid_time(grid, clock, zero),
+            cells,
+            out,
+        )
     }
 
-    /// Take the learned state back from `snapshot` (checked by
-    /// [`Snapshot::parse`]): the periods, stages and gates, and the cells,
-    /// placed at the first frame as `phase` allows and, unless every
-    /// stage's phase is known, again by the phase search a little later
-    /// (half a worm period; with the worm's phase known, a quarter, or a
-    /// twentieth once the other stages are fitted apart). The
-    /// fault counters stay. A snapshot of another stage count, or one
-    /// outside the bounds this configuration learns within (`bounds`), is
-    /// refused and nothing changes.
-    pub fn restore(&mut self, snapshot: &Snapshot<'_>, phase: Phase) -> Result<(), SnapshotError> {
-        if snapshot.stages() != N {
-            return Err(SnapshotError::Stages {
-                saved: u16::try_from(snapshot.stages()).unwrap_or(u16::MAX),
-                model: u16::try_from(N).unwrap_or(u16::MAX),
-            });
-        }
-        bounds::check(&self.config, snapshot)?;
-        self.reset();
-        for (s, ((tracker, gate), saved)) in self
-            .trackers
+    /// Take `snapshot` (passed by [`check`]) back into the guider's
+    /// cleared state, as [`Guider::restore`](super::Guider::restore): the
+    /// stages' periods, gates and discovery, and the cells into `grid`, to
+    /// be placed at the first frame as `phase` allows.
+    pub(super) fn take_back<S: Scalar>(
+        &mut self,
+        snapshot: &Snapshot<'_>,
+        phase: Phase,
+        grid: &mut Grid<S>,
+        trackers: &mut [PeriodTracker; N],
+        gates: &mut [f64; N],
+        discovery: &mut Discovery<N>,
+    ) {
+        for (s, ((tracker, gate), saved)) in trackers
             .iter_mut()
-            .zip(&mut self.gates)
+            .zip(gates)
             .zip((0..N).filter_map(|s| snapshot.stage(s)))
             .enumerate()
         {
@@ -189,8 +270,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
                 disagreement: saved.disagreement,
             };
             *gate = saved.gate;
-            self.discovery
-                .restore(s, saved.found, saved.ratio, saved.frames_found);
+            discovery.restore(s, saved.found, saved.ratio, saved.frames_found);
         }
         let (offset, place) = match phase {
             Phase::Known { gear_time_offset_s } => (gear_time_offset_s, Place::AllStages),
@@ -203,96 +283,106 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             let cells = snapshot
                 .cells()
                 .map(|(g, v)| (S::from_f64(g as f64), S::from_f64(v as f64)));
-            self.grid.restore(cells, DARK_VARIANCE);
+            grid.restore(cells, DARK_VARIANCE);
             self.resume = Some(Resume { grid_zero_s, place });
             self.spectrum_hold = Some(SpectrumHold { gap_s: 0.0 });
         }
-        Ok(())
     }
 
-    /// The clock is about to jump ahead with nothing measured in between
-    /// (the port slews the axis: the gears turn, no frame is taken). What
-    /// was learned is kept and placed before the next frame as a restore
-    /// at a known phase places a snapshot: where the clock puts it if that
-    /// is within eight worm periods, else as near as every
-    /// stage's phase allows, the gap left dark; its level then meets the
-    /// first measured frame. Pushed across the jump instead, the cells
-    /// would be filled by interpolating the last frame to the next (as
-    /// measured data), or, frame by frame through a long slew, push the
-    /// learned data out of the ring. Does nothing while a placement is
-    /// pending or before anything was learned.
-    pub fn jumped(&mut self) {
-        let len = self.grid.len();
-        if self.resume.is_some() || self.frames == 0 || len == 0 {
-            return;
+    /// [`Guider::jumped`](super::Guider::jumped) on `grid`: its cells are
+    /// taken back as a snapshot of them would be (its time on `clock`, the
+    /// caller's clock at a gear time), through the work buffer, to be
+    /// placed at the next frame as at a known phase. False, and nothing
+    /// changes, while a restored grid waits for its first frame or with no
+    /// cells.
+    pub(super) fn jumped<S: Scalar>(
+        &mut self,
+        grid: &mut Grid<S>,
+        scratch: &mut [S; FFT_LEN],
+        clock: impl Fn(f64) -> f64,
+    ) -> bool {
+        let len = grid.len();
+        if self.resume.is_some() || len == 0 {
+            return false;
         }
         // As a snapshot would save them (the time of the first cell's
         // start on the clock) and restore them, through the scratch
         // buffer (twice the grid's cells: gear errors, then variances).
-        let zero = self.clock_at_grid_time(self.grid.cell_time(0) + 0.5 * CELL_S);
-        let (gears, variances) = self.scratch.split_at_mut(GRID_CELLS);
+        let zero = self.clock_at_grid_time(grid, clock, grid.cell_time(0) + 0.5 * CELL_S);
+        let (gears, variances) = scratch.split_at_mut(GRID_CELLS);
         for (i, (g, v)) in gears
             .iter_mut()
             .zip(variances.iter_mut())
             .enumerate()
             .take(len)
         {
-            (*g, *v) = self.grid.cell(i);
+            (*g, *v) = grid.cell(i);
         }
-        let (gears, variances) = self.scratch.split_at(GRID_CELLS);
+        let (gears, variances) = scratch.split_at(GRID_CELLS);
         let cells = gears.iter().zip(variances).take(len).map(|(&g, &v)| (g, v));
-        self.grid.restore(cells, DARK_VARIANCE);
-        self.restart_frames();
+        grid.restore(cells, DARK_VARIANCE);
         self.resume = Some(Resume {
             grid_zero_s: zero,
             place: Place::AllStages,
         });
         self.spectrum_hold = Some(SpectrumHold { gap_s: 0.0 });
+        true
     }
 
-    /// The caller's clock at a time of the grid.
-    fn clock_at_grid_time(&self, t: f64) -> f64 {
+    /// The caller's clock at a time of `grid`: a restored grid waiting for
+    /// its first frame has its own; any other is on `clock` (the caller's
+    /// clock at a gear time).
+    fn clock_at_grid_time<S: Scalar>(
+        &self,
+        grid: &Grid<S>,
+        clock: impl Fn(f64) -> f64,
+        t: f64,
+    ) -> f64 {
         match self.resume {
             Some(r) => r.grid_zero_s + t,
-            None => t + self.grid.origin().unwrap_or(0.0) + self.start_time - self.dither_offset,
+            None => clock(t + grid.origin().unwrap_or(0.0)),
         }
     }
 
     /// At the first frame (clock `time_s`, gear error `gear` if measured):
-    /// place a restored grid before it and return the frame's gear time
-    /// (0 without a restored grid).
-    pub(super) fn resume_restored(&mut self, time_s: f64, gear: Option<f64>) -> f64 {
-        let Some(resume) = self.resume.take() else {
-            return 0.0;
-        };
+    /// place a restored grid before it (`None` without one).
+    pub(super) fn resume_restored<S: Scalar>(
+        &mut self,
+        time_s: f64,
+        gear: Option<f64>,
+        grid: &mut Grid<S>,
+        scratch: &mut [S; FFT_LEN],
+        stages: Stages<'_, N>,
+        fit: Fit<'_, S, N>,
+    ) -> Option<Resumed> {
+        let resume = self.resume.take()?;
         if resume.place == Place::Search {
             self.phase_search = Some(PhaseSearch {
-                new_from: self.grid.len(),
+                new_from: grid.len(),
                 wait_periods: PHASE_SEARCH_PERIODS,
                 blocks: true,
                 stages: None,
             });
-            return self.grid.open_cell_end();
+            return Some(Resumed {
+                gear_time_s: grid.open_cell_end(),
+                placed: false,
+            });
         }
-        // Placed at a known phase, the restored data predicts from this
-        // frame on: no warm-up (its 20 s of the guider alone were a fifth
-        // of the excess over settled of a parked night's first 30 min).
-        self.warm_up_frames = 0;
         let x = time_s - resume.grid_zero_s;
-        let mut at = self.placement(x, resume.place == Place::Worm);
-        let end = self.grid.open_cell_end();
+        let mut at = placement(grid, stages, x, resume.place == Place::Worm);
+        let end = grid.open_cell_end();
         // Placed exactly where the saved clock says, the model continues:
         // every line keeps its phase, and so does the spectrum.
         if resume.place == Place::AllStages && at == x {
             self.spectrum_hold = None;
         }
         if resume.place == Place::Worm {
-            let saved = self.grid.len();
+            let saved = grid.len();
             // With the stages apart, the saved cells go right before the
             // frame (no gap), the worm's share moved to its phase there;
             // the other stages' phases are found by the search.
-            let stages = self.take_out_stages(saved, at - end);
-            if stages.is_some() {
+            let apart = take_out_stages(grid, scratch, stages, saved, at - end);
+            if apart.is_some() {
                 at = end;
             }
             // The first new data lands in the cell after those the frame
@@ -300,20 +390,23 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             let completed = libm::floor((at - end) / CELL_S) + 1.0;
             self.phase_search = Some(PhaseSearch {
                 new_from: saved + completed.max(0.0) as usize,
-                wait_periods: match &stages {
-                    Some(h) => self.first_stage_search(h),
+                wait_periods: match &apart {
+                    Some(h) => stages.first_stage_search(h),
                     None => WORM_PHASE_SEARCH_PERIODS,
                 },
                 blocks: false,
-                stages: stages.map(|h| (saved, h)),
+                stages: apart.map(|h| (saved, h)),
             });
         }
         self.hold_over_gap(at - end);
-        let periods = self.trackers.map(|t| t.period_s);
-        self.kernel = Kernel::new(&periods, &self.fit_gates());
-        if let Some(level) = gear.zip(self.mean_from_data(at)).map(|(g, m)| g - m) {
+        let periods = stages.trackers.map(|t| t.period_s);
+        *fit.kernel = Kernel::new(&periods, &self.fit_gates(stages.gates));
+        if let Some(level) = gear
+            .zip(fit.mean_from_data(grid, scratch, at))
+            .map(|(g, m)| g - m)
+        {
             if level.is_finite() {
-                self.grid.shift_gear(0..self.grid.len(), level);
+                grid.shift_gear(0..grid.len(), level);
                 if let Some(PhaseSearch {
                     stages: Some((_, h)),
                     ..
@@ -323,149 +416,39 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
                 }
             }
         }
-        at
-    }
-
-    /// Fit the stages' shares of the restored cells (held `..saved`), move
-    /// the worm's by `worm_shift` s (its share at `t` becomes what it was
-    /// at `t + worm_shift`) and take every other stage's out; `None`
-    /// (nothing changed) if the fit fails or no stage but the worm could
-    /// be fitted.
-    fn take_out_stages(&mut self, saved: usize, worm_shift: f64) -> Option<Harmonics<N>> {
-        let first = self.grid.cell_time(0);
-        let span = self.grid.cell_time(saved.checked_sub(1)?) - first;
-        let periods = self.trackers.map(|t| t.period_s);
-        let grid = &self.grid;
-        let cells = (0..saved).map(|i| {
-            let (g, v) = grid.cell(i);
-            (v.to_f64() < LEVEL_MAX_VARIANCE).then(|| g.to_f64())
-        });
-        let fitted = Harmonics::fit(cells, first, span, &periods, &self.gates)?;
-        if !(1..N).any(|s| fitted.has_stage(s)) {
-            return None;
-        }
-        let mut h = fitted;
-        h.shift(0, worm_shift);
-        // The change of each cell (and the open one after them), in the
-        // scratch buffer.
-        let changes = fitted.shares(first).zip(h.shares(first));
-        for (slot, (was, now)) in self.scratch.iter_mut().zip(changes).take(saved + 1) {
-            *slot = S::from_f64(now[0] - was.iter().sum::<f64>());
-        }
-        self.shift_cells_by_scratch(saved);
-        Some(h)
-    }
-
-    /// Add the scratch buffer's first values to the held cells `..cells`
-    /// (and, if they reach the newest, the next to the open cell).
-    fn shift_cells_by_scratch(&mut self, cells: usize) {
-        let scratch = &self.scratch;
-        self.grid
-            .shift_gear_with(0..cells, |i| scratch.get(i).map_or(0.0, |c| c.to_f64()));
-    }
-
-    /// The phases at which the new data (held `new_from..`) shows the
-    /// stages taken out of the restored cells (see
-    /// [`take_out_stages`](Self::take_out_stages)): each stage's shift, in
-    /// turn, that best explains what the new data holds beyond the level,
-    /// the slope, the worm and the stages already placed (`None`: too
-    /// little measured to place it); and the level of what remains. Leaves
-    /// the remainder in the scratch buffer.
-    fn find_stage_phases(
-        &mut self,
-        new_from: usize,
-        h: &Harmonics<N>,
-    ) -> ([Option<StagePhase>; N], f64) {
-        // What the new cells hold beyond the level, the slope and the worm
-        // (NaN: not measured), in the scratch buffer.
-        let new = self.grid.len().saturating_sub(new_from);
-        let t0 = self.grid.cell_time(new_from);
-        for (j, r) in self.scratch.iter_mut().enumerate().take(new) {
-            let (g, v) = self.grid.cell(new_from + j);
-            let t = t0 + CELL_S * j as f64;
-            *r = if v.to_f64() < LEVEL_MAX_VARIANCE {
-                S::from_f64(g.to_f64() - h.trend(t) - h.stage(0, t))
-            } else {
-                S::from_f64(f64::NAN)
-            };
-        }
-        let mut phases = [None; N];
-        for (s, phase) in phases.iter_mut().enumerate().skip(1) {
-            if !h.has_stage(s) {
-                continue;
-            }
-            let scratch = &self.scratch;
-            let residuals = (0..new).filter_map(move |j| {
-                let r = scratch.get(j)?.to_f64();
-                r.is_finite().then_some((t0 + CELL_S * j as f64, r))
-            });
-            *phase = h.phase(s, residuals);
-            if let Some(found) = *phase {
-                for (j, r) in self.scratch.iter_mut().enumerate().take(new) {
-                    let t = t0 + CELL_S * j as f64;
-                    *r -= S::from_f64(h.stage(s, t + found.shift_s));
-                }
-            }
-        }
-        let (sum, n) = self
-            .scratch
-            .iter()
-            .take(new)
-            .map(|r| r.to_f64())
-            .filter(|r| r.is_finite())
-            .fold((0.0, 0u32), |(sum, n), r| (sum + r, n + 1));
-        let level = if n > 0 { sum / f64::from(n) } else { 0.0 };
-        (phases, level)
-    }
-
-    /// Put the stages taken out of the restored cells (held `..saved`) back
-    /// at `phases` ([`find_stage_phases`](Self::find_stage_phases)), and
-    /// move the restored cells to `level`. A stage without a phase stays
-    /// out of the restored cells.
-    fn put_back_stages(
-        &mut self,
-        saved: usize,
-        h: &Harmonics<N>,
-        phases: &[Option<StagePhase>; N],
-        level: f64,
-    ) {
-        let mut placed = *h;
-        placed.clear(0);
-        for (s, phase) in phases.iter().enumerate().skip(1) {
-            match phase {
-                Some(found) => placed.shift(s, found.shift_s),
-                None => placed.clear(s),
-            }
-        }
-        let shares = placed.shares(self.grid.cell_time(0));
-        for (slot, share) in self.scratch.iter_mut().zip(shares).take(saved) {
-            *slot = S::from_f64(share.iter().sum::<f64>() + level);
-        }
-        self.shift_cells_by_scratch(saved);
+        Some(Resumed {
+            gear_time_s: at,
+            placed: true,
+        })
     }
 
     /// Whether the model must wait for the phase search (the restored data
     /// is not placed yet: no prediction); runs the search when the new data
     /// reaches the search's wait. Called before each fit.
-    pub(super) fn phase_search_pending(&mut self) -> bool {
+    pub(super) fn phase_search_pending<S: Scalar>(
+        &mut self,
+        grid: &mut Grid<S>,
+        scratch: &mut [S; FFT_LEN],
+        stages: Stages<'_, N>,
+    ) -> bool {
         let Some(search) = self.phase_search else {
             return false;
         };
-        let worm_cells = libm::ceil(self.trackers[0].period_s / CELL_S);
-        let new_cells = self.grid.len().saturating_sub(search.new_from);
-        let full = self.grid.len() >= GRID_CELLS;
+        let worm_cells = libm::ceil(stages.trackers[0].period_s / CELL_S);
+        let new_cells = grid.len().saturating_sub(search.new_from);
+        let full = grid.len() >= GRID_CELLS;
         if (new_cells as f64) < search.wait_periods * worm_cells && !full {
             return search.blocks;
         }
         self.phase_search = None;
         match search.stages {
             Some((saved, h)) => {
-                let (phases, level) = self.find_stage_phases(search.new_from, &h);
+                let (phases, level) = find_stage_phases(grid, scratch, search.new_from, &h);
                 let placed = phases.iter().flatten().all(|p| p.is_clear());
                 // The last wait: the next cell would pass the most.
                 let last = new_cells as f64 + 1.0 > STAGE_PHASE_SEARCH_MAX_PERIODS * worm_cells;
                 if placed || full || last {
-                    self.put_back_stages(saved, &h, &phases, level);
+                    put_back_stages(grid, scratch, saved, &h, &phases, level);
                 } else {
                     // Again at the next cell (half a cell of slack, as the
                     // wait is in worm periods).
@@ -475,17 +458,17 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
                     });
                 }
             }
-            None => self.search_phase(search.new_from, !search.blocks),
+            None => self.search_phase(grid, stages, search.new_from, !search.blocks),
         }
         false
     }
 
-    /// The gates the fit uses: the stages' own, but while restored data
-    /// waits for the phase search with only the worm's phase known, the
-    /// worm's alone (the other stages' saved data lies at a wrong phase,
-    /// and would predict them wrongly rather than not at all).
-    pub(super) fn fit_gates(&self) -> [f64; N] {
-        let mut gates = self.gates;
+    /// The gates the fit uses: the stages' own `gates`, but while restored
+    /// data waits for the phase search with only the worm's phase known,
+    /// the worm's alone (the other stages' saved data lies at a wrong
+    /// phase, and would predict them wrongly rather than not at all).
+    pub(super) fn fit_gates(&self, gates: &[f64; N]) -> [f64; N] {
+        let mut gates = *gates;
         if self.phase_search.is_some() {
             gates[1..].fill(0.0);
         }
@@ -495,9 +478,15 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     /// The phase search over the saved data (held cells `..saved`) and the
     /// new (`saved..`); without a match (too little measured) saved data
     /// at no known phase is dropped.
-    fn search_phase(&mut self, saved: usize, worm_known: bool) {
-        if !self.match_saved_data(saved, worm_known) && !worm_known {
-            self.grid.drop_oldest(saved);
+    fn search_phase<S: Scalar>(
+        &mut self,
+        grid: &mut Grid<S>,
+        stages: Stages<'_, N>,
+        saved: usize,
+        worm_known: bool,
+    ) {
+        if !self.match_saved_data(grid, stages, saved, worm_known) && !worm_known {
+            grid.drop_oldest(saved);
         }
     }
 
@@ -506,20 +495,25 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     /// is flattest (least squares of a level and a slope, measured cells
     /// only) puts each new cell at the phase of a saved one. The saved data
     /// then moves back by the gap that makes those equal phases lie a whole
-    /// number of every stage's periods apart (as
-    /// [`placement`](Self::placement) weighs them), and to the new data's
-    /// level. False if nothing matched (and nothing moved).
-    fn match_saved_data(&mut self, saved: usize, worm_known: bool) -> bool {
-        let new = self.grid.len().saturating_sub(saved);
+    /// number of every stage's periods apart (as [`placement`] weighs
+    /// them), and to the new data's level. False if nothing matched (and
+    /// nothing moved).
+    fn match_saved_data<S: Scalar>(
+        &mut self,
+        grid: &mut Grid<S>,
+        stages: Stages<'_, N>,
+        saved: usize,
+        worm_known: bool,
+    ) -> bool {
+        let new = grid.len().saturating_sub(saved);
         if new < 2 || saved < new {
             return false;
         }
-        let grid = &self.grid;
         let measured = |i: usize| {
             let (g, v) = grid.cell(i);
             (v.to_f64() < LEVEL_MAX_VARIANCE).then(|| g.to_f64())
         };
-        let worm = self.trackers[0].period_s;
+        let worm = stages.trackers[0].period_s;
         let mut best = (f64::INFINITY, 0, 0.0);
         for shift in 0..=saved - new {
             // With the worm's phase known (an index), only the shifts that
@@ -563,17 +557,58 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         let mut gap = (f64::INFINITY, 0usize);
         for g in 0..max_gap as usize {
             let extra = CELL_S * g as f64;
-            let c = self.phase_cost(lag + extra, extra);
+            let c = stages.phase_cost(lag + extra, extra);
             if c < gap.0 {
                 gap = (c, g);
             }
         }
-        self.grid.shift_gear(0..saved, level);
-        self.grid.insert_gap(saved, gap.1, DARK_VARIANCE);
+        grid.shift_gear(0..saved, level);
+        grid.insert_gap(saved, gap.1, DARK_VARIANCE);
         self.hold_over_gap(CELL_S * gap.1 as f64);
         true
     }
 
+    /// The placement left `gap_s` without data inside the held spectrum.
+    fn hold_over_gap(&mut self, gap_s: f64) {
+        if let Some(hold) = &mut self.spectrum_hold {
+            hold.gap_s += gap_s.max(0.0);
+        }
+    }
+
+    /// Whether the spectrum of `grid` is not read at this frame: while
+    /// restored data waits for the phase search, and then until the data
+    /// resolves every two stages with weight by [`HOLD_BEATS`] (not
+    /// counting the placement's gap) or fills the grid.
+    pub(super) fn spectrum_held<S: Scalar>(
+        &mut self,
+        grid: &Grid<S>,
+        stages: Stages<'_, N>,
+    ) -> bool {
+        if self.phase_search.is_some() {
+            return true;
+        }
+        let Some(hold) = self.spectrum_hold else {
+            return false;
+        };
+        let span = grid.len() as f64 * CELL_S - hold.gap_s;
+        let weighs = |s: usize| s == 0 || stages.gates[s] > 0.0;
+        let resolved = (0..N).filter(|&i| weighs(i)).all(|i| {
+            (i + 1..N).filter(|&j| weighs(j)).all(|j| {
+                beats(
+                    span,
+                    stages.trackers[i].period_s,
+                    stages.trackers[j].period_s,
+                ) >= HOLD_BEATS
+            })
+        });
+        if resolved || grid.len() >= GRID_CELLS {
+            self.spectrum_hold = None;
+        }
+        self.spectrum_hold.is_some()
+    }
+}
+
+impl<const N: usize> Stages<'_, N> {
     /// Worm periods of new data before the first search for the stages
     /// fitted apart in `h`: [`STAGE_PHASE_SEARCH_PERIODS`], and at least
     /// [`STAGE_SEARCH_FRACTION`] of every such stage's own period.
@@ -585,37 +620,6 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             .fold(STAGE_PHASE_SEARCH_PERIODS, f64::max)
     }
 
-    /// The placement left `gap_s` without data inside the held spectrum.
-    fn hold_over_gap(&mut self, gap_s: f64) {
-        if let Some(hold) = &mut self.spectrum_hold {
-            hold.gap_s += gap_s.max(0.0);
-        }
-    }
-
-    /// Whether the spectrum is not read at this frame: while restored data
-    /// waits for the phase search, and then until the data resolves every
-    /// two stages with weight by [`HOLD_BEATS`] (not counting the
-    /// placement's gap) or fills the grid.
-    pub(super) fn spectrum_held(&mut self) -> bool {
-        if self.phase_search.is_some() {
-            return true;
-        }
-        let Some(hold) = self.spectrum_hold else {
-            return false;
-        };
-        let span = self.grid.len() as f64 * CELL_S - hold.gap_s;
-        let weighs = |s: usize| s == 0 || self.gates[s] > 0.0;
-        let resolved = (0..N).filter(|&i| weighs(i)).all(|i| {
-            (i + 1..N).filter(|&j| weighs(j)).all(|j| {
-                beats(span, self.trackers[i].period_s, self.trackers[j].period_s) >= HOLD_BEATS
-            })
-        });
-        if resolved || self.grid.len() >= GRID_CELLS {
-            self.spectrum_hold = None;
-        }
-        self.spectrum_hold.is_some()
-    }
-
     /// How far off a placement is, s²: the stages' phases (weighted by
     /// their gates; the worm's is 1) when equal phases lie `lag` s apart,
     /// and the phase error the tracked periods gather over a gap of `gap`
@@ -624,7 +628,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         let stages: f64 = self
             .trackers
             .iter()
-            .zip(&self.gates)
+            .zip(self.gates)
             .map(|(t, &gate)| {
                 let cycles = lag / t.period_s;
                 let off_s = (cycles - libm::round(cycles)) * t.period_s;
@@ -634,25 +638,22 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         let drift_s = GAP_PHASE_DRIFT * gap;
         stages + drift_s * drift_s
     }
+}
 
-    /// The model's mean at grid time `x` from the data held, fitted around
-    /// `x`: the newest [`LEVEL_CELLS`] measured cells, each plus the
-    /// predicted change from it to `x`, averaged (one cell's noise would
-    /// move the level). `None` if no cell was measured or the fit fails.
-    fn mean_from_data(&mut self, x: f64) -> Option<f64> {
-        self.gp
-            .infer(&self.grid, &self.kernel, x, &mut self.scratch)
-            .ok()?;
+impl<S: Scalar, const N: usize> Fit<'_, S, N> {
+    /// The model's mean at grid time `x` from the data held in `grid`,
+    /// fitted around `x` (through the work buffer `scratch`): the newest
+    /// [`LEVEL_CELLS`] measured cells, each plus the predicted change from
+    /// it to `x`, averaged (one cell's noise would move the level). `None`
+    /// if no cell was measured or the fit fails.
+    fn mean_from_data(self, grid: &Grid<S>, scratch: &mut [S; FFT_LEN], x: f64) -> Option<f64> {
+        self.gp.infer(grid, self.kernel, x, scratch).ok()?;
         let (mut sum, mut n) = (0.0, 0u32);
-        for i in (0..self.grid.len()).rev() {
-            let (g, v) = self.grid.cell(i);
+        for i in (0..grid.len()).rev() {
+            let (g, v) = grid.cell(i);
             if v.to_f64() < LEVEL_MAX_VARIANCE {
-                let t = self.grid.cell_time(i);
-                sum += g.to_f64()
-                    + self
-                        .gp
-                        .predict_change(&self.grid, &self.kernel, t, x)
-                        .to_f64();
+                let t = grid.cell_time(i);
+                sum += g.to_f64() + self.gp.predict_change(grid, self.kernel, t, x).to_f64();
                 n += 1;
                 if n == LEVEL_CELLS {
                     break;
@@ -661,45 +662,171 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         }
         (n > 0).then(|| sum / f64::from(n))
     }
+}
 
-    /// Where on the restored grid the first frame goes, given that the
-    /// saved clock puts it at grid time `x`: within [`PLACEMENT_PERIODS`]
-    /// worm periods after the saved data, where the stages' phases
-    /// (weighted by their gates; the worm's is 1) are least off and the gap,
-    /// over which the tracked periods' error adds up, is short: the cost is
-    /// the sum of squares of both in seconds. The candidates are `x` moved
-    /// by whole worm periods (`x` itself if it lies in the range: the model
-    /// then continues exactly) and a [`PLACEMENT_STEP_S`] grid over the
-    /// range, which can trade a little of the worm's phase for much of
-    /// another stage's.
-    fn placement(&self, x: f64, worm_only: bool) -> f64 {
-        let end = self.grid.open_cell_end();
-        let worm = self.trackers[0].period_s;
-        // `x` less whole worm periods, to [end, end + worm). (Not
-        // `libm::fmod`: its integer remainder brings a panic path.)
-        let first = x - libm::floor((x - end) / worm) * worm;
-        if !first.is_finite() {
-            return end;
+/// Fit the stages' shares of the restored cells (held `..saved` in
+/// `grid`), move the worm's by `worm_shift` s (its share at `t` becomes
+/// what it was at `t + worm_shift`) and take every other stage's out;
+/// `None` (nothing changed) if the fit fails or no stage but the worm
+/// could be fitted.
+fn take_out_stages<S: Scalar, const N: usize>(
+    grid: &mut Grid<S>,
+    scratch: &mut [S; FFT_LEN],
+    stages: Stages<'_, N>,
+    saved: usize,
+    worm_shift: f64,
+) -> Option<Harmonics<N>> {
+    let first = grid.cell_time(0);
+    let span = grid.cell_time(saved.checked_sub(1)?) - first;
+    let periods = stages.trackers.map(|t| t.period_s);
+    let cells = (0..saved).map(|i| {
+        let (g, v) = grid.cell(i);
+        (v.to_f64() < LEVEL_MAX_VARIANCE).then(|| g.to_f64())
+    });
+    let fitted = Harmonics::fit(cells, first, span, &periods, stages.gates)?;
+    if !(1..N).any(|s| fitted.has_stage(s)) {
+        return None;
+    }
+    let mut h = fitted;
+    h.shift(0, worm_shift);
+    // The change of each cell (and the open one after them), in the
+    // scratch buffer.
+    let changes = fitted.shares(first).zip(h.shares(first));
+    for (slot, (was, now)) in scratch.iter_mut().zip(changes).take(saved + 1) {
+        *slot = S::from_f64(now[0] - was.iter().sum::<f64>());
+    }
+    shift_cells_by_scratch(grid, scratch, saved);
+    Some(h)
+}
+
+/// Add the scratch buffer's first values to the held cells `..cells` of
+/// `grid` (and, if they reach the newest, the next to the open cell).
+fn shift_cells_by_scratch<S: Scalar>(grid: &mut Grid<S>, scratch: &[S; FFT_LEN], cells: usize) {
+    grid.shift_gear_with(0..cells, |i| scratch.get(i).map_or(0.0, |c| c.to_f64()));
+}
+
+/// The phases at which the new data (held `new_from..` in `grid`) shows
+/// the stages taken out of the restored cells (see [`take_out_stages`]):
+/// each stage's shift, in turn, that best explains what the new data holds
+/// beyond the level, the slope, the worm and the stages already placed
+/// (`None`: too little measured to place it); and the level of what
+/// remains. Leaves the remainder in the scratch buffer.
+fn find_stage_phases<S: Scalar, const N: usize>(
+    grid: &Grid<S>,
+    scratch: &mut [S; FFT_LEN],
+    new_from: usize,
+    h: &Harmonics<N>,
+) -> ([Option<StagePhase>; N], f64) {
+    // What the new cells hold beyond the level, the slope and the worm
+    // (NaN: not measured), in the scratch buffer.
+    let new = grid.len().saturating_sub(new_from);
+    let t0 = grid.cell_time(new_from);
+    for (j, r) in scratch.iter_mut().enumerate().take(new) {
+        let (g, v) = grid.cell(new_from + j);
+        let t = t0 + CELL_S * j as f64;
+        *r = if v.to_f64() < LEVEL_MAX_VARIANCE {
+            S::from_f64(g.to_f64() - h.trend(t) - h.stage(0, t))
+        } else {
+            S::from_f64(f64::NAN)
+        };
+    }
+    let mut phases = [None; N];
+    for (s, phase) in phases.iter_mut().enumerate().skip(1) {
+        if !h.has_stage(s) {
+            continue;
         }
-        if worm_only {
-            return first;
-        }
-        let cost = |y: f64| self.phase_cost(y - x, y - end);
-        let span = f64::from(PLACEMENT_PERIODS) * worm;
-        let steps = libm::ceil(span / PLACEMENT_STEP_S).min(PLACEMENT_MAX_STEPS) as u32;
-        let whole_periods = (0..PLACEMENT_PERIODS).map(|k| first + f64::from(k) * worm);
-        let grid = (0..steps).map(|j| end + f64::from(j) * PLACEMENT_STEP_S);
-        let mut best = (f64::INFINITY, first);
-        for y in whole_periods.chain(grid) {
-            let c = cost(y);
-            // Strictly better only: of equals the first (the exact worm
-            // phase, the shorter gap) stays.
-            if c < best.0 {
-                best = (c, y);
+        let remainder = &*scratch;
+        let residuals = (0..new).filter_map(move |j| {
+            let r = remainder.get(j)?.to_f64();
+            r.is_finite().then_some((t0 + CELL_S * j as f64, r))
+        });
+        *phase = h.phase(s, residuals);
+        if let Some(found) = *phase {
+            for (j, r) in scratch.iter_mut().enumerate().take(new) {
+                let t = t0 + CELL_S * j as f64;
+                *r -= S::from_f64(h.stage(s, t + found.shift_s));
             }
         }
-        best.1
     }
+    let (sum, n) = scratch
+        .iter()
+        .take(new)
+        .map(|r| r.to_f64())
+        .filter(|r| r.is_finite())
+        .fold((0.0, 0u32), |(sum, n), r| (sum + r, n + 1));
+    let level = if n > 0 { sum / f64::from(n) } else { 0.0 };
+    (phases, level)
+}
+
+/// Put the stages taken out of the restored cells (held `..saved` in
+/// `grid`) back at `phases` ([`find_stage_phases`]), and move the restored
+/// cells to `level`. A stage without a phase stays out of the restored
+/// cells.
+fn put_back_stages<S: Scalar, const N: usize>(
+    grid: &mut Grid<S>,
+    scratch: &mut [S; FFT_LEN],
+    saved: usize,
+    h: &Harmonics<N>,
+    phases: &[Option<StagePhase>; N],
+    level: f64,
+) {
+    let mut placed = *h;
+    placed.clear(0);
+    for (s, phase) in phases.iter().enumerate().skip(1) {
+        match phase {
+            Some(found) => placed.shift(s, found.shift_s),
+            None => placed.clear(s),
+        }
+    }
+    let shares = placed.shares(grid.cell_time(0));
+    for (slot, share) in scratch.iter_mut().zip(shares).take(saved) {
+        *slot = S::from_f64(share.iter().sum::<f64>() + level);
+    }
+    shift_cells_by_scratch(grid, scratch, saved);
+}
+
+/// Where on the restored `grid` the first frame goes, given that the
+/// saved clock puts it at grid time `x`: within [`PLACEMENT_PERIODS`]
+/// worm periods after the saved data, where the stages' phases
+/// (weighted by their gates; the worm's is 1) are least off and the gap,
+/// over which the tracked periods' error adds up, is short: the cost is
+/// the sum of squares of both in seconds. The candidates are `x` moved
+/// by whole worm periods (`x` itself if it lies in the range: the model
+/// then continues exactly) and a [`PLACEMENT_STEP_S`] grid over the
+/// range, which can trade a little of the worm's phase for much of
+/// another stage's.
+fn placement<S: Scalar, const N: usize>(
+    grid: &Grid<S>,
+    stages: Stages<'_, N>,
+    x: f64,
+    worm_only: bool,
+) -> f64 {
+    let end = grid.open_cell_end();
+    let worm = stages.trackers[0].period_s;
+    // `x` less whole worm periods, to [end, end + worm). (Not
+    // `libm::fmod`: its integer remainder brings a panic path.)
+    let first = x - libm::floor((x - end) / worm) * worm;
+    if !first.is_finite() {
+        return end;
+    }
+    if worm_only {
+        return first;
+    }
+    let cost = |y: f64| stages.phase_cost(y - x, y - end);
+    let span = f64::from(PLACEMENT_PERIODS) * worm;
+    let steps = libm::ceil(span / PLACEMENT_STEP_S).min(PLACEMENT_MAX_STEPS) as u32;
+    let whole_periods = (0..PLACEMENT_PERIODS).map(|k| first + f64::from(k) * worm);
+    let fine = (0..steps).map(|j| end + f64::from(j) * PLACEMENT_STEP_S);
+    let mut best = (f64::INFINITY, first);
+    for y in whole_periods.chain(fine) {
+        let c = cost(y);
+        // Strictly better only: of equals the first (the exact worm
+        // phase, the shorter gap) stays.
+        if c < best.0 {
+            best = (c, y);
+        }
+    }
+    best.1
 }
 
 #[cfg(test)]
@@ -875,11 +1002,11 @@ mod tests {
             gear_time_offset_s: 8000.0 + 432.0,
         }));
         assert!(ff != 0.0);
-        assert_eq!(worm.fit_gates()[1], 0.0);
+        assert_eq!(worm.restore.fit_gates(&worm.gates)[1], 0.0);
         // A quarter worm period (108 s) and a frame.
         run(&mut worm, 8000.0, 0.0, 2.0, 120.0, 0.0);
-        assert!(worm.phase_search.is_none());
-        assert_eq!(worm.fit_gates(), worm.gates);
+        assert!(worm.restore.phase_search.is_none());
+        assert_eq!(worm.restore.fit_gates(&worm.gates), worm.gates);
         assert!(worm.gates[1] > 0.5);
     }
 
@@ -900,7 +1027,7 @@ mod tests {
         let mut worm = std::boxed::Box::new(Guider::<f32, 2>::new(*g.config()));
         worm.restore(&snapshot, index).unwrap();
         let rms = run(&mut worm, phase, 5.0, 0.0, 900.0, 60.0);
-        assert!(worm.phase_search.is_none());
+        assert!(worm.restore.phase_search.is_none());
         let steady = run(&mut g, 0.0, 0.0, 8000.0, 8900.0, 8000.0);
         std::println!("steady {steady}, index {rms}");
         // Measured (from the first minute on): steady 0.060, index 0.058.
@@ -941,7 +1068,7 @@ mod tests {
             }
             // 30 min on, the data spans 2.2 beats: still held, the stage
             // as saved.
-            assert!(r.spectrum_hold.is_some(), "{phase}");
+            assert!(r.restore.spectrum_hold.is_some(), "{phase}");
             assert_eq!((r.period_s(1), r.gate(1)), (g.period_s(1), g.gate(1)));
         }
     }
@@ -982,7 +1109,7 @@ mod tests {
             r.observe(t, None, 0.0, 10.0, 2.0);
             t += 2.0;
         }
-        assert!(r.phase_search.is_none());
+        assert!(r.restore.phase_search.is_none());
         assert!(r.grid.len() < 60, "{}", r.grid.len());
         assert!(r.snapshot(&mut [0u8; SNAPSHOT_MAX]).is_ok());
     }
