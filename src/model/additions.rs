@@ -38,6 +38,11 @@ pub struct Additions {
     /// reached through `ControlLoop::start_with`). Off: learned as guide
     /// frames.
     pub calibration_watch: bool,
+    /// The model: an inference's subset leaves out the cells without a
+    /// measurement (a re-pointing's gap, clouds, a calibration), which the
+    /// short kernels rank high near the frame though they carry nothing
+    /// (`model::gp::subset`). Off: every cell competes, as in the paper.
+    pub measured_subset: bool,
 }
 
 /// A name [`Additions::set`] does not know.
@@ -54,10 +59,11 @@ impl Additions {
         feed_forward_horizon: true,
         saved_share: true,
         calibration_watch: true,
+        measured_subset: true,
     };
 
     /// Each addition's name, as [`set`](Self::set) takes it.
-    pub const NAMES: [&'static str; 7] = [
+    pub const NAMES: [&'static str; 8] = [
         "bump",
         "pulse_weight",
         "pulse_damping",
@@ -65,6 +71,7 @@ impl Additions {
         "feed_forward_horizon",
         "saved_share",
         "calibration_watch",
+        "measured_subset",
     ];
 
     /// Switches the addition called `name` on or off.
@@ -77,6 +84,7 @@ impl Additions {
             "feed_forward_horizon" => &mut self.feed_forward_horizon,
             "saved_share" => &mut self.saved_share,
             "calibration_watch" => &mut self.calibration_watch,
+            "measured_subset" => &mut self.measured_subset,
             _ => return Err(UnknownAddition),
         };
         *switch = on;

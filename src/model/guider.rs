@@ -678,6 +678,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         let fit = Fit {
             gp: &mut self.gp,
             kernel: &mut self.kernel,
+            measured_only: self.config.additions.measured_subset,
         };
         let resumed = self.restore.resume_restored(
             time_s,
@@ -780,7 +781,13 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         self.kernel = Kernel::new(&periods, &self.restore.fit_gates(&self.gates));
         let failed = self
             .gp
-            .infer(&self.grid, &self.kernel, centre - origin, &mut self.scratch)
+            .infer(
+                &self.grid,
+                &self.kernel,
+                centre - origin,
+                &mut self.scratch,
+                self.config.additions.measured_subset,
+            )
             .is_err();
         if failed {
             self.faults.inference_failures = self.faults.inference_failures.saturating_add(1);

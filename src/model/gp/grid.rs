@@ -36,6 +36,10 @@ use crate::model::numeric::scalar::Scalar;
 pub const GRID_CELLS: usize = 2048;
 /// Width of a cell in seconds.
 pub const CELL_S: f64 = 5.0;
+/// A cell of at least this variance holds no measurement: frames without
+/// one (clouds, a calibration, the gap a re-pointing leaves) are pushed
+/// with 10^4.
+pub const UNMEASURED_VARIANCE: f64 = 100.0;
 /// Cells the averaging's lag is a running mean over (about 5 minutes).
 pub const LAG_CELLS: u32 = 64;
 

@@ -67,18 +67,24 @@ impl<S: Scalar> Gp<S> {
     /// `scratch` (at least 2 x `GRID_CELLS` long, the guider's spectrum
     /// buffer) holds the selection's covariances and then the lag table.
     /// A shorter `scratch` gives [`InferError::Degenerate`].
+    /// `measured_only`: the subset leaves out cells without a measurement
+    /// while there are measured ones (`Subset::select`).
     pub fn infer<const N: usize>(
         &mut self,
         grid: &Grid<S>,
         kernel: &Kernel<S, N>,
         centre: f64,
         scratch: &mut [S],
+        measured_only: bool,
     ) -> Result<(), InferError> {
         self.valid = false;
         if grid.len() < 2 {
             return Err(InferError::TooLittleData);
         }
-        if !self.subset.select(grid, kernel, centre, scratch) {
+        if !self
+            .subset
+            .select(grid, kernel, centre, scratch, measured_only)
+        {
             return Err(InferError::Degenerate);
         }
         let cells = self.subset.cells();
@@ -145,9 +151,9 @@ mod tests {
         let mut gp = Gp::<f64>::new();
         let mut scratch = [0.0; GRID_CELLS];
         assert_eq!(
-            gp.infer(&g, &k, 3001.0, &mut scratch[..100]),
+            gp.infer(&g, &k, 3001.0, &mut scratch[..100], true),
             Err(InferError::Degenerate)
         );
-        assert_eq!(gp.infer(&g, &k, 3001.0, &mut scratch), Ok(()));
+        assert_eq!(gp.infer(&g, &k, 3001.0, &mut scratch, true), Ok(()));
     }
 }

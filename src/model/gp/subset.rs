@@ -4,7 +4,7 @@
 use core::cell::Cell;
 use core::cmp::Ordering;
 
-use crate::model::gp::grid::{Grid, CELL_S};
+use crate::model::gp::grid::{Grid, CELL_S, UNMEASURED_VARIANCE};
 use crate::model::gp::kernel::Kernel;
 use crate::model::gp::SUBSET;
 use crate::model::numeric::scalar::Scalar;
@@ -33,6 +33,12 @@ impl Subset {
 
     /// Choose the cells with the largest full-kernel covariance to `centre`;
     /// of equal covariances the older cell wins (NaN counts as the lowest).
+    /// `measured_only`: a cell without a measurement
+    /// ([`UNMEASURED_VARIANCE`]) counts as the lowest too. Its variance
+    /// gives it next to no weight in the prediction, but the short kernels
+    /// rank it high when it lies near `centre`: after a re-pointing or
+    /// clouds, the gap's cells took most of the places and left out the
+    /// measured data that knows the phase.
     /// `scratch` must hold two covariances per cell (`2 * grid.len()`);
     /// returns false otherwise.
     ///
@@ -52,6 +58,7 @@ impl Subset {
         kernel: &Kernel<S, N>,
         centre: f64,
         scratch: &mut [S],
+        measured_only: bool,
     ) -> bool {
         let total = grid.len();
         let k = total.min(SUBSET);
@@ -74,9 +81,14 @@ impl Subset {
         // `S::from_f64(grid.cell_time(j))` bit for bit without the software
         // f64 arithmetic per cell on the target.
         let step = S::from_f64(CELL_S);
+        let unmeasured = S::from_f64(UNMEASURED_VARIANCE);
         let mut t_j = S::from_f64(grid.cell_time(0));
-        for c in cov.iter_mut() {
-            *c = kernel.full(centre_s - t_j);
+        for (j, c) in cov.iter_mut().enumerate() {
+            *c = if measured_only && grid.cell(j).1 >= unmeasured {
+                S::from_f64(f64::NAN)
+            } else {
+                kernel.full(centre_s - t_j)
+            };
             t_j += step;
         }
         copy.copy_from_slice(cov);
@@ -193,22 +205,34 @@ mod tests {
     use crate::model::gp::grid::GRID_CELLS;
     use std::vec::Vec;
 
-    /// The subset by sorting every cell: (covariance descending, cell
+    /// The subset by sorting every cell: (measured first if
+    /// `measured_only`, covariance descending among the measured, cell
     /// ascending), the first `SUBSET`, ascending.
     fn reference<S: Scalar, const N: usize>(
         grid: &Grid<S>,
         kernel: &Kernel<S, N>,
         centre: f64,
+        measured_only: bool,
     ) -> Vec<u16> {
         let centre_s = S::from_f64(centre);
-        let mut all: Vec<(S, u16)> = (0..grid.len())
+        let mut all: Vec<(bool, S, u16)> = (0..grid.len())
             .map(|j| {
                 let t = S::from_f64(grid.cell_time(j));
-                (kernel.full(centre_s - t), j as u16)
+                let dark = measured_only && grid.cell(j).1.to_f64() >= UNMEASURED_VARIANCE;
+                let cov = if dark {
+                    S::ZERO
+                } else {
+                    kernel.full(centre_s - t)
+                };
+                (dark, cov, j as u16)
             })
             .collect();
-        all.sort_by(|a, b| b.0.partial_cmp(&a.0).unwrap().then(a.1.cmp(&b.1)));
-        let mut cells: Vec<u16> = all.iter().take(SUBSET).map(|x| x.1).collect();
+        all.sort_by(|a, b| {
+            a.0.cmp(&b.0)
+                .then(b.1.partial_cmp(&a.1).unwrap())
+                .then(a.2.cmp(&b.2))
+        });
+        let mut cells: Vec<u16> = all.iter().take(SUBSET).map(|x| x.2).collect();
         cells.sort();
         cells
     }
@@ -224,11 +248,26 @@ mod tests {
     }
 
     fn check<S: Scalar, const N: usize>(grid: &Grid<S>, kernel: &Kernel<S, N>, centre: f64) {
-        let mut subset = Subset::new();
-        let mut scratch = [S::ZERO; 2 * GRID_CELLS];
-        assert!(subset.select(grid, kernel, centre, &mut scratch));
-        let want = reference(grid, kernel, centre);
-        assert_eq!(subset.cells(), &want[..], "centre {centre}");
+        for measured_only in [false, true] {
+            let mut subset = Subset::new();
+            let mut scratch = [S::ZERO; 2 * GRID_CELLS];
+            assert!(subset.select(grid, kernel, centre, &mut scratch, measured_only));
+            let want = reference(grid, kernel, centre, measured_only);
+            assert_eq!(subset.cells(), &want[..], "centre {centre}");
+        }
+    }
+
+    /// Measured from 0 to `gap_from` s, nothing measured (variance 10^4)
+    /// for `gap_s`, measured again for `after_s`.
+    fn gapped<S: Scalar>(gap_from: f64, gap_s: f64, after_s: f64) -> Grid<S> {
+        let mut g = Grid::new();
+        let mut t = 0.0;
+        while t < gap_from + gap_s + after_s {
+            let dark = (gap_from..gap_from + gap_s).contains(&t);
+            g.push(t, libm::sin(t / 50.0), if dark { 1e4 } else { 0.5 });
+            t += 2.0;
+        }
+        g
     }
 
     #[test]
@@ -280,5 +319,31 @@ mod tests {
         // Few cells: all of them.
         let small = grid::<f64>(300.0);
         check(&small, &k1, 310.0);
+    }
+
+    /// After a re-pointing's gap of 2,000 s and a minute of new data, the
+    /// short kernels rank the gap's cells near the frame above the older
+    /// data: every cell of the subset is measured only if asked.
+    #[test]
+    fn a_gaps_cells_take_no_place_when_measured_only() {
+        let g = gapped::<f32>(4000.0, 2000.0, 60.0);
+        let k: Kernel<f32, 2> = Kernel::new(&[288.0, 110.0], &[1.0, 1.0]);
+        let centre = g.cell_time(g.len() - 1) + 2.5;
+        check(&g, &k, centre);
+        let dark = |measured_only| {
+            let mut subset = Subset::new();
+            let mut scratch = [0.0; 2 * GRID_CELLS];
+            assert!(subset.select(&g, &k, centre, &mut scratch, measured_only));
+            subset
+                .cells()
+                .iter()
+                .filter(|&&j| g.cell(usize::from(j)).1 >= 100.0)
+                .count()
+        };
+        assert_eq!(dark(true), 0);
+        assert!(dark(false) > SUBSET / 2, "{}", dark(false));
+        // Fewer measured cells than places: the unmeasured fill the rest.
+        let mostly_dark = gapped::<f32>(100.0, 5000.0, 0.0);
+        check(&mostly_dark, &k, 5100.0);
     }
 }

@@ -20,7 +20,7 @@
 use core::mem::MaybeUninit;
 
 use super::{GuiderConfig, DARK_VARIANCE};
-use crate::model::gp::grid::{Grid, CELL_S, GRID_CELLS};
+use crate::model::gp::grid::{Grid, CELL_S, GRID_CELLS, UNMEASURED_VARIANCE};
 use crate::model::gp::infer::Gp;
 use crate::model::gp::kernel::Kernel;
 use crate::model::in_place::init_fields;
@@ -69,9 +69,6 @@ const STAGE_PHASE_SEARCH_MAX_PERIODS: f64 = 0.5;
 /// frame, s/s: the relative error of a tracked period (C5 after 8,000 s in
 /// `f32`: 432.23 s for 432 s, 5e-4).
 const GAP_PHASE_DRIFT: f64 = 5e-4;
-/// Cells of at least this variance count as unmeasured (frames without a
-/// measurement have 10^4).
-const LEVEL_MAX_VARIANCE: f64 = 100.0;
 /// Measured cells whose level is averaged (a minute of data).
 const LEVEL_CELLS: u32 = 12;
 
@@ -159,6 +156,8 @@ pub(super) struct Stages<'a, const N: usize> {
 pub(super) struct Fit<'a, S: Scalar, const N: usize> {
     pub(super) gp: &'a mut Gp<S>,
     pub(super) kernel: &'a mut Kernel<S, N>,
+    /// The subset takes measured cells only (the `measured_subset` addition).
+    pub(super) measured_only: bool,
 }
 
 /// The first frame after a restore, on the restored grid.
@@ -511,7 +510,7 @@ impl<const N: usize> Restore<N> {
         }
         let measured = |i: usize| {
             let (g, v) = grid.cell(i);
-            (v.to_f64() < LEVEL_MAX_VARIANCE).then(|| g.to_f64())
+            (v.to_f64() < UNMEASURED_VARIANCE).then(|| g.to_f64())
         };
         let worm = stages.trackers[0].period_s;
         let mut best = (f64::INFINITY, 0, 0.0);
@@ -647,11 +646,13 @@ impl<S: Scalar, const N: usize> Fit<'_, S, N> {
     /// it to `x`, averaged (one cell's noise would move the level). `None`
     /// if no cell was measured or the fit fails.
     fn mean_from_data(self, grid: &Grid<S>, scratch: &mut [S; FFT_LEN], x: f64) -> Option<f64> {
-        self.gp.infer(grid, self.kernel, x, scratch).ok()?;
+        self.gp
+            .infer(grid, self.kernel, x, scratch, self.measured_only)
+            .ok()?;
         let (mut sum, mut n) = (0.0, 0u32);
         for i in (0..grid.len()).rev() {
             let (g, v) = grid.cell(i);
-            if v.to_f64() < LEVEL_MAX_VARIANCE {
+            if v.to_f64() < UNMEASURED_VARIANCE {
                 let t = grid.cell_time(i);
                 sum += g.to_f64() + self.gp.predict_change(grid, self.kernel, t, x).to_f64();
                 n += 1;
@@ -681,7 +682,7 @@ fn take_out_stages<S: Scalar, const N: usize>(
     let periods = stages.trackers.map(|t| t.period_s);
     let cells = (0..saved).map(|i| {
         let (g, v) = grid.cell(i);
-        (v.to_f64() < LEVEL_MAX_VARIANCE).then(|| g.to_f64())
+        (v.to_f64() < UNMEASURED_VARIANCE).then(|| g.to_f64())
     });
     let fitted = Harmonics::fit(cells, first, span, &periods, stages.gates)?;
     if !(1..N).any(|s| fitted.has_stage(s)) {
@@ -724,7 +725,7 @@ fn find_stage_phases<S: Scalar, const N: usize>(
     for (j, r) in scratch.iter_mut().enumerate().take(new) {
         let (g, v) = grid.cell(new_from + j);
         let t = t0 + CELL_S * j as f64;
-        *r = if v.to_f64() < LEVEL_MAX_VARIANCE {
+        *r = if v.to_f64() < UNMEASURED_VARIANCE {
             S::from_f64(g.to_f64() - h.trend(t) - h.stage(0, t))
         } else {
             S::from_f64(f64::NAN)

@@ -76,9 +76,9 @@ fn main() -> ! {
     for (name, n) in [("N1", 1usize), ("N2", 2)] {
         let a = instr::elapsed_instructions();
         let r = if n == 1 {
-            gp.infer(grid, &k1, 5990.0, buf)
+            gp.infer(grid, &k1, 5990.0, buf, true)
         } else {
-            gp.infer(grid, &k2, 5990.0, buf)
+            gp.infer(grid, &k2, 5990.0, buf, true)
         };
         let b = instr::elapsed_instructions();
         let p = if n == 1 {
