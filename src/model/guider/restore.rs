@@ -60,7 +60,7 @@ const STAGE_PHASE_SEARCH_PERIODS: f64 = 0.05;
 /// of its period too: a twentieth of C2's 380 s stage (5 cells) is nearly
 /// a line, and the F-test passed phases far off (docs/model.md).
 const STAGE_SEARCH_FRACTION: f64 = 0.15;
-/// Until the new data picks each stage's phase clearly (an F-test at 90 %
+/// Until the new data picks each stage's phase clearly (an F-test at 95 %
 /// against every phase an eighth of a period or more away), the search
 /// runs again at every new cell, up to this many worm periods of new data
 /// (measured on `guide-sim nights`, docs/model.md).

@@ -45,15 +45,17 @@ const SEPARATION: f64 = 1.5;
 /// from making them singular.
 const RIDGE: f64 = 1e-9;
 
-/// The contrast an F-test at 90 % asks of one parameter against the
+/// The contrast an F-test at 95 % asks of one parameter against the
 /// residuals' degrees of freedom, 1 to 20 (few residuals estimate their
-/// variance poorly); beyond, [`F_90_MANY`] (its value at 60). Measured on
-/// `guide-sim nights` against 95 % (docs/model.md).
-const F_90: [f64; 20] = [
-    39.86, 8.526, 5.538, 4.545, 4.060, 3.776, 3.589, 3.458, 3.360, 3.285, 3.225, 3.177, 3.136,
-    3.102, 3.073, 3.048, 3.026, 3.007, 2.990, 2.975,
+/// variance poorly); beyond, [`F_95_MANY`] (its value at 60). A phase
+/// taken wrongly costs minutes and one more cell of waiting costs five
+/// seconds without the stage; measured on `guide-sim nights` against 90 %
+/// (docs/model.md).
+const F_95: [f64; 20] = [
+    161.4, 18.51, 10.13, 7.709, 6.608, 5.987, 5.591, 5.318, 5.117, 4.965, 4.844, 4.747, 4.667,
+    4.600, 4.543, 4.494, 4.451, 4.414, 4.381, 4.351,
 ];
-const F_90_MANY: f64 = 2.791;
+const F_95_MANY: f64 = 4.001;
 
 /// A stage's phase found in new data: the shift that places it, s, and how
 /// clearly the data picks it (see [`Harmonics::phase`]).
@@ -68,11 +70,11 @@ pub(super) struct StagePhase {
 }
 
 impl StagePhase {
-    /// Whether the data picks this phase over every other at 90 %.
+    /// Whether the data picks this phase over every other at 95 %.
     pub(super) fn is_clear(&self) -> bool {
         let needed = match self.dof {
             0 => f64::INFINITY,
-            d => F_90.get(d - 1).copied().unwrap_or(F_90_MANY),
+            d => F_95.get(d - 1).copied().unwrap_or(F_95_MANY),
         };
         self.contrast >= needed
     }
