@@ -3,6 +3,7 @@
 mod carry;
 
 use crate::guide_algorithm::{GuideAlgorithm, Restart};
+use mkgp_mount::model::additions::Additions;
 use mkgp_mount::model::guider::{Guider, GuiderConfig};
 use mkgp_mount::model::numeric::scalar::Scalar;
 
@@ -32,6 +33,16 @@ impl<const N: usize, S: Scalar> GpAlgorithm<N, S> {
             guider: Box::new(Guider::new(config)),
             carry: carry::Carrier::new(Carry::default()),
         }
+    }
+
+    /// With some of the model's `additions` switched off.
+    pub fn with_additions(mut self, additions: Additions) -> Self {
+        let config = GuiderConfig {
+            additions,
+            ..*self.guider.config()
+        };
+        self.guider = Box::new(Guider::new(config));
+        self
     }
 
     /// What the model keeps when guiding starts again ([`Carry`]).

@@ -7,6 +7,7 @@
 //! The test data (`synthetic_cases.csv`, `phd2-logs/`, `reference-traces/`)
 //! lives in `host-tests/data`, found by [`data::data_dir`].
 
+pub mod ablation;
 pub mod bench;
 pub mod cases;
 pub mod closed_loop;

@@ -4,6 +4,7 @@
 
 use crate::gp::{Carry, GpAlgorithm};
 use crate::guide_algorithm::GuideAlgorithm;
+use mkgp_mount::model::additions::Additions;
 
 /// A Gaussian-process model for the simulators.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -33,20 +34,40 @@ pub fn algorithm(
     control_gain: Option<f64>,
     prediction_gain: Option<f64>,
 ) -> Box<dyn GuideAlgorithm> {
-    carrying(model, control_gain, prediction_gain, Carry::default())
+    carrying(
+        model,
+        control_gain,
+        prediction_gain,
+        Carry::default(),
+        Additions::ALL,
+    )
 }
 
-/// [`algorithm`], carried across a pause in guiding as `carry` says.
+/// [`algorithm`], carried across a pause in guiding as `carry` says, with
+/// the model's `additions` as given.
 pub fn carrying(
     model: Model,
     control_gain: Option<f64>,
     prediction_gain: Option<f64>,
     carry: Carry,
+    additions: Additions,
 ) -> Box<dyn GuideAlgorithm> {
-    let (c, p) = (control_gain, prediction_gain);
+    let (c, p, a) = (control_gain, prediction_gain, additions);
     match model {
-        Model::Ppec => Box::new(GpAlgorithm::<1>::new(c, p).with_carry(carry)),
-        Model::Mkgp => Box::new(GpAlgorithm::<2>::new(c, p).with_carry(carry)),
-        Model::Mkgp3 => Box::new(GpAlgorithm::<3>::new(c, p).with_carry(carry)),
+        Model::Ppec => Box::new(
+            GpAlgorithm::<1>::new(c, p)
+                .with_carry(carry)
+                .with_additions(a),
+        ),
+        Model::Mkgp => Box::new(
+            GpAlgorithm::<2>::new(c, p)
+                .with_carry(carry)
+                .with_additions(a),
+        ),
+        Model::Mkgp3 => Box::new(
+            GpAlgorithm::<3>::new(c, p)
+                .with_carry(carry)
+                .with_additions(a),
+        ),
     }
 }

@@ -41,9 +41,11 @@ mod section;
 pub mod table;
 
 use crate::data::Error;
+use crate::gp::Carry;
 use crate::guide_algorithm::{GuideAlgorithm, Hysteresis, Restart};
 use crate::models::{self, Model};
 use crate::phd2_log::{GuideLog, Section};
+use mkgp_mount::model::additions::Additions;
 
 /// Control and prediction gains of the replay (PHD2's performance test).
 pub const CONTROL_GAIN: f64 = 0.7;
@@ -260,8 +262,20 @@ pub fn model_algorithm(model: Model) -> Box<dyn GuideAlgorithm> {
 
 /// `model`'s gain in percent over PHD2's hysteresis 0.7 on `log`.
 pub fn gain_over_hysteresis(log: &GuideLog, model: Model) -> Result<f64, Error> {
+    gain_with(log, model, Additions::ALL)
+}
+
+/// [`gain_over_hysteresis`] with the model's `additions` as given.
+pub fn gain_with(log: &GuideLog, model: Model, additions: Additions) -> Result<f64, Error> {
     let hysteresis = run(log, &mut Hysteresis::phd2_baseline())?;
-    Ok(gain_pct(run_model(log, model)?.rms, hysteresis.rms))
+    let mut algorithm = models::carrying(
+        model,
+        Some(CONTROL_GAIN),
+        Some(PREDICTION_GAIN),
+        Carry::default(),
+        additions,
+    );
+    Ok(gain_pct(run(log, &mut *algorithm)?.rms, hysteresis.rms))
 }
 
 /// Improvement of `model_rms` over `baseline_rms` in percent:

@@ -58,6 +58,7 @@ use mkgp_mount::control_loop::port_mount::{
 use mkgp_mount::control_loop::st4_feed::{EdgeQueue, EdgeSource, RawEdge};
 use mkgp_mount::control_loop::stepping::AxisStepper;
 use mkgp_mount::control_loop::{ControlLoop, FrameRecord};
+use mkgp_mount::model::additions::Additions;
 use mkgp_mount::model::guider::Faults;
 use mkgp_mount::mount::config::{Mount, MountConfig, SIDEREAL_ARCSEC_PER_S};
 use mkgp_mount::mount::frame::{Frame, Rates};
@@ -147,6 +148,8 @@ pub struct Setup {
     pub sky: Sky,
     /// The firmware's `least_pulse_share` (its default unless set).
     pub least_pulse_share: f32,
+    /// The additions the firmware runs (all unless set).
+    pub additions: Additions,
 }
 
 impl Default for Setup {
@@ -155,6 +158,7 @@ impl Default for Setup {
             guider: GuiderSettings::default(),
             sky: Sky::default(),
             least_pulse_share: MountConfig::default().least_pulse_share,
+            additions: Additions::ALL,
         }
     }
 }
@@ -455,16 +459,31 @@ impl Rig {
         seed: u64,
         config: MountConfig,
     ) -> Self {
+        Self::with_additions(case, firmware, noise_px, seed, config, Additions::ALL)
+    }
+
+    /// [`with_mount`](Self::with_mount) with some of the firmware's
+    /// `additions` switched off (the learner's and the loop's fast part's).
+    pub fn with_additions(
+        case: &Case,
+        firmware: Firmware,
+        noise_px: f64,
+        seed: u64,
+        config: MountConfig,
+        additions: Additions,
+    ) -> Self {
         let mount = config.validate().unwrap_or_else(|e| panic!("{e}"));
         let learner = match firmware {
             Firmware::GuiderOnly => AnyLearner::None,
-            Firmware::Ppec => AnyLearner::One(Box::new(Learner::new(&mount))),
-            Firmware::Mkgp => AnyLearner::Mkgp(Box::new(Learner::new(&mount))),
+            Firmware::Ppec => AnyLearner::One(Box::new(Learner::with_additions(&mount, additions))),
+            Firmware::Mkgp => {
+                AnyLearner::Mkgp(Box::new(Learner::with_additions(&mount, additions)))
+            }
         };
         let tick_hz = mount.config().step_tick_hz;
         let mut ra = AxisStepper::new(mount.max_ra_steps_per_s(), tick_hz);
         let mut dec = AxisStepper::new(mount.max_dec_steps_per_s(), tick_hz);
-        let (control, rates) = ControlLoop::start(&mount, 0, 0);
+        let (control, rates) = ControlLoop::start_with(&mount, additions, 0, 0);
         ra.set_rate(rates.ra_steps_per_s);
         dec.set_rate(rates.dec_steps_per_s);
         let mut rig = Rig {
@@ -1020,7 +1039,7 @@ pub fn run_on(
     setup: Setup,
     config: MountConfig,
 ) -> RunResult {
-    let mut rig = Rig::with_mount(case, firmware, noise_px, seed, config);
+    let mut rig = Rig::with_additions(case, firmware, noise_px, seed, config, setup.additions);
     rig.set_guider(setup.guider);
     rig.set_sky(setup.sky);
     rig.run_until((RUN_S * 1e6) as u64);
@@ -1048,7 +1067,7 @@ pub const CSV_HEADER: &str = "case,noise_px,guider_only,fw_ppec,fw_mkgp";
 
 /// Mean pointing RMS of `firmware` on `case` with `noise_px` of noise (0:
 /// one noise-free run; else the mean over [`SEEDS`], added in seed order).
-fn mean_rms(case: &Case, firmware: Firmware, noise_px: f64, setup: Setup) -> f64 {
+pub fn mean_rms(case: &Case, firmware: Firmware, noise_px: f64, setup: Setup) -> f64 {
     let seeds: &[u64] = if noise_px > 0.0 { &SEEDS } else { &SEEDS[..1] };
     let rms: Vec<f64> = seeds
         .par_iter()

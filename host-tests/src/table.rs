@@ -29,7 +29,7 @@ pub enum Column {
     Model(Model),
 }
 
-fn make(column: Column) -> Box<dyn GuideAlgorithm> {
+pub fn make(column: Column) -> Box<dyn GuideAlgorithm> {
     match column {
         Column::Reactive => Box::new(Hysteresis::paper()),
         Column::Model(m) => models::algorithm(m, None, None),

@@ -202,7 +202,7 @@ fn unknown_subcommand_is_a_usage_error() {
 }
 
 /// Subcommands the usage and the help must name.
-const SUBCOMMANDS: [&str; 7] = [
+const SUBCOMMANDS: [&str; 8] = [
     "table",
     "replay",
     "bench",
@@ -210,6 +210,7 @@ const SUBCOMMANDS: [&str; 7] = [
     "nights",
     "night",
     "population",
+    "ablate",
 ];
 
 #[test]
@@ -316,6 +317,7 @@ fn each_subcommand_help_lists_its_options() {
             ],
         ),
         ("population", &["--seed <S>", "--count <N>", "--csv"]),
+        ("ablate", &["--seed <S>", "--count <N>", "--only <NAME>"]),
     ] {
         let o = guide_sim(&[sub, "--help"]);
         assert!(o.status.success(), "{sub}: {}", stderr(&o));
@@ -332,6 +334,20 @@ fn a_population_of_no_mount_is_a_usage_error() {
     let o = guide_sim(&["population", "--count", "0"]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stdout(&o).is_empty());
+}
+
+#[test]
+fn an_ablation_of_an_unknown_addition_is_a_usage_error() {
+    let o = guide_sim(&["ablate", "--only", "frobnicate"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(
+        err.contains("\"frobnicate\"") && err.contains("measured_subset"),
+        "{err}"
+    );
+    assert!(stdout(&o).is_empty());
+    let o = guide_sim(&["ablate", "--count", "1"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
 }
 
 #[test]

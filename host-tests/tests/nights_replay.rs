@@ -13,6 +13,7 @@ use host_tests::guide_algorithm::{GuideAlgorithm, Hysteresis, Restart};
 use host_tests::models::{self, Model};
 use host_tests::phd2_log::{self, GuideLog};
 use host_tests::replay::{self, report, Options, TimeStep};
+use mkgp_mount::model::additions::Additions;
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -303,6 +304,7 @@ fn gains(log: &GuideLog, carry: Carry, options: &Options) -> [f64; 4] {
                 Some(replay::CONTROL_GAIN),
                 Some(replay::PREDICTION_GAIN),
                 carry,
+                Additions::ALL,
             ),
         };
         replay::run_with(log, &mut *a, options).unwrap()

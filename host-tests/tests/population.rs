@@ -196,16 +196,16 @@ fn the_first_mounts_meet_the_goal() {
     // The summary counts what the rows say.
     let lines = summary::summarize(&rows);
     assert_eq!(lines.len(), 2 * Ratio::ALL.len());
-    for l in &lines {
+    for (l, s) in lines.iter().map(|l| (l, &l.stats)) {
         let at: Vec<_> = rows
             .iter()
             .filter(|r| (r.noise_px > 0.0) == (l.level == summary::Level::Seeing))
             .collect();
-        assert_eq!(l.mounts, RUN);
-        assert_eq!(l.worse, at.iter().filter(|r| l.ratio.of(r) > 1.0).count());
+        assert_eq!(s.mounts, RUN);
+        assert_eq!(s.worse, at.iter().filter(|r| l.ratio.of(r) > 1.0).count());
         let worst = at.iter().map(|r| l.ratio.of(r)).fold(f64::MIN, f64::max);
-        assert_eq!(l.worst, worst);
-        assert!(l.median <= l.p90 && l.p90 <= l.worst, "{l:?}");
+        assert_eq!(s.worst, worst);
+        assert!(s.median <= s.p90 && s.p90 <= s.worst, "{l:?}");
     }
     // Deterministic: the same mount again gives the same rows.
     assert_eq!(population::rows(&mounts[0]), [rows[0], rows[1]]);

@@ -9,6 +9,7 @@
 
 use core::mem::MaybeUninit;
 
+use crate::model::additions::Additions;
 use crate::model::guider::{Faults, Guider, GuiderConfig, DITHER_FRAMES, MAX_TIME_STEP_S};
 use crate::model::in_place::{build, init_fields};
 use crate::model::numeric::clamp;
@@ -109,6 +110,17 @@ impl<const N: usize> Learner<N> {
     /// gains are not used: the learner only observes).
     pub fn with_config(mount: &Mount, config: GuiderConfig<f32>) -> Self {
         build(|slot| Self::init_with_config(slot, mount, config))
+    }
+
+    /// [`new`](Self::new) with some of the `additions` switched off.
+    pub fn with_additions(mount: &Mount, additions: Additions) -> Self {
+        Self::with_config(
+            mount,
+            GuiderConfig {
+                additions,
+                ..Self::default_config(mount)
+            },
+        )
     }
 
     /// [`with_config`](Self::with_config) in place.

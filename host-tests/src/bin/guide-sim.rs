@@ -15,6 +15,7 @@
 //!                 [--speed X] [--no-st4-guider]
 //! guide-sim view (--port DEVICE | --pty PATH | --tcp HOST:PORT) [--listen ADDR:PORT]
 //! guide-sim population [--seed S] [--count N] [--csv]
+//! guide-sim ablate [--seed S] [--count N] [--only NAME]...
 //! ```
 //! `guide-sim <subcommand> --help` describes each; the arguments are
 //! parsed by clap (usage errors exit with 2).
@@ -25,7 +26,7 @@ use host_tests::cases;
 use host_tests::data::{self, Error};
 use host_tests::phd2_log::{self, GuideLog};
 use host_tests::replay::{self, report};
-use host_tests::{mount_sim, night, nights, population, st4_sim};
+use host_tests::{ablation, mount_sim, night, nights, population, st4_sim};
 use host_tests::{svg, table};
 use rayon::prelude::*;
 use std::io::Write;
@@ -170,6 +171,36 @@ enum Command {
     /// for evaluation. About 17 s of CPU per mount (half an hour for 200 on 2 cores).
     #[command(verbatim_doc_comment)]
     Population(PopulationArgs),
+    /// What each addition around the paper's model is worth
+    ///
+    /// Runs --count mounts of the population (noise-free and at each mount's
+    /// seeing, its first run seed only), the paper's cases C1-C8 at 0 and 1 px and
+    /// the PHD2 logs of host-tests/data with every addition on, then with each one
+    /// switched off in turn (--only: just those). The learner's additions are run
+    /// in the firmware's loop (fw mkgp over the guider alone), the model's in the
+    /// model's (mkgp over the reactive guider). Prints per addition and noise
+    /// level the mounts' ratios with it off, the change in median and worst
+    /// against all on (positive: the addition pays) with its spread (the bootstrap
+    /// standard deviation over redrawn mounts), whether it pays, the mean ratio
+    /// on the paper's cases and the logs' gains over hysteresis (docs/model.md,
+    /// "Additions and their worth"). Progress on stderr. About 2 s of CPU per
+    /// mount and addition.
+    #[command(verbatim_doc_comment)]
+    Ablate(AblateArgs),
+}
+
+#[derive(Args)]
+struct AblateArgs {
+    /// The population's seed (28: the development seed)
+    #[arg(long, value_name = "S", default_value_t = population::DEVELOPMENT_SEED)]
+    seed: u64,
+    /// How many mounts (the issue's bar: at least 100)
+    #[arg(long, value_name = "N", default_value_t = 100,
+          value_parser = clap::value_parser!(u64).range(2..=100_000))]
+    count: u64,
+    /// Only this addition (repeatable); all of them by default
+    #[arg(long, value_name = "NAME")]
+    only: Vec<String>,
 }
 
 #[derive(Args)]
@@ -360,6 +391,7 @@ fn main() -> ExitCode {
         Command::Mount(args) => cmd_mount(args),
         Command::View(args) => cmd_view(args),
         Command::Population(args) => cmd_population(args),
+        Command::Ablate(args) => cmd_ablate(args),
     }
 }
 
@@ -750,6 +782,7 @@ fn cmd_st4(args: St4Args) -> ExitCode {
             bump_arcsec: args.bump,
         },
         least_pulse_share: args.least_pulse_share as f32,
+        ..st4_sim::Setup::default()
     };
     let rows = st4_sim::table_with(&cases, &levels, setup);
     if csv {
@@ -1054,17 +1087,168 @@ fn cmd_population(PopulationArgs { seed, count, csv }: PopulationArgs) -> ExitCo
         "noise", "ratio", "mounts", "median", "p90", "worst", "worst_mount", "worse"
     );
     for l in &lines {
+        let s = &l.stats;
         println!(
             "{:<7} {:<20} {:>6} {:>7.3} {:>7.3} {:>7.3} {:>11} {:>6}",
             l.level.name(),
             l.ratio.name(),
-            l.mounts,
-            l.median,
-            l.p90,
-            l.worst,
-            l.worst_mount,
-            l.worse
+            s.mounts,
+            s.median,
+            s.p90,
+            s.worst,
+            s.worst_mount,
+            s.worse
         );
     }
     ExitCode::SUCCESS
+}
+
+fn cmd_ablate(AblateArgs { seed, count, only }: AblateArgs) -> ExitCode {
+    use ablation::{Bench, Loop};
+    use mkgp_mount::model::additions::Additions;
+    let names: Vec<&str> = Additions::NAMES
+        .iter()
+        .copied()
+        .filter(|n| only.is_empty() || only.iter().any(|o| o == n))
+        .collect();
+    if let Some(unknown) = only
+        .iter()
+        .find(|o| !Additions::NAMES.contains(&o.as_str()))
+    {
+        eprintln!(
+            "guide-sim ablate: no addition is called {unknown:?} (they are: {})",
+            Additions::NAMES.join(", ")
+        );
+        return ExitCode::from(2);
+    }
+    let Some((_, cases)) = load_cases(None) else {
+        return ExitCode::FAILURE;
+    };
+    let logs = match ablation::phd2_logs() {
+        Ok(l) => l,
+        Err(e) => {
+            eprintln!("guide-sim ablate: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let mounts = population::draw(seed, count as usize);
+    let started = std::time::Instant::now();
+    let progress = |what: &str| {
+        eprintln!(
+            "guide-sim ablate: {what} ({:.0} s)",
+            started.elapsed().as_secs_f64()
+        )
+    };
+    println!(
+        "Ablation of seed {seed}: {count} mounts (noise-free and at each mount's seeing, \
+         its first run seed), the paper's {} cases at 0 and 1 px, {} PHD2 logs",
+        cases.len(),
+        logs.len()
+    );
+    println!(
+        "ratio: mkgp over the reactive guider (model loop) or fw mkgp over the guider alone \
+         (firmware loop); change: with the addition off less all on (positive: it pays); \
+         spread: bootstrap SD over redrawn mounts"
+    );
+    println!(
+        "{:<22} {:<8} {:<6} {:>6} {:>6} {:>13} {:>5} {:>15} {:>15} {:>4} {:>6}  logs: gain %",
+        "addition",
+        "loop",
+        "noise",
+        "median",
+        "p90",
+        "worst (mount)",
+        "worse",
+        "median change",
+        "worst change",
+        "pays",
+        "cases"
+    );
+    let (mut pays, mut not) = (Vec::new(), Vec::new());
+    for lp in [Loop::Model, Loop::Firmware] {
+        let these: Vec<&str> = names
+            .iter()
+            .copied()
+            .filter(|n| Loop::of(n) == lp)
+            .collect();
+        if these.is_empty() {
+            continue;
+        }
+        let bench = Bench::new(lp, &mounts, &cases, &logs);
+        let on = match bench.figures(Additions::ALL) {
+            Ok(f) => f,
+            Err(e) => {
+                eprintln!("guide-sim ablate: {e}");
+                return ExitCode::FAILURE;
+            }
+        };
+        progress(&format!("{} loop, all on", lp.name()));
+        let numbers = bench.mount_numbers();
+        let all_on = ablation::worth(&numbers, &on, &on);
+        print_worth("(all on)", lp, &all_on, None, &on);
+        for (k, name) in these.iter().enumerate() {
+            let mut additions = Additions::ALL;
+            let _ = additions.set(name, false);
+            let off = match bench.figures(additions) {
+                Ok(f) => f,
+                Err(e) => {
+                    eprintln!("guide-sim ablate: {e}");
+                    return ExitCode::FAILURE;
+                }
+            };
+            let w = ablation::worth(&numbers, &on, &off);
+            let verdict = w.iter().any(|w| w.pays());
+            print_worth(name, lp, &w, Some(verdict), &off);
+            if verdict {
+                pays.push(*name)
+            } else {
+                not.push(*name)
+            }
+            progress(&format!("{name} off ({}/{})", k + 1, these.len()));
+        }
+    }
+    println!("pays: {}", pays.join(", "));
+    println!("does not pay: {}", not.join(", "));
+    ExitCode::SUCCESS
+}
+
+/// An ablation's two lines (noise-free, seeing); `verdict` `None` for all on.
+fn print_worth(
+    name: &str,
+    lp: ablation::Loop,
+    worth: &[ablation::Worth; 2],
+    verdict: Option<bool>,
+    figures: &ablation::Figures,
+) {
+    for w in worth {
+        let s = &w.off;
+        let change = |c: f64, spread: f64| match verdict {
+            Some(_) => format!("{c:+.3} ±{spread:.3}"),
+            None => String::new(),
+        };
+        let logs: Vec<String> = figures
+            .log_gains_pct
+            .iter()
+            .map(|g| format!("{g:.2}"))
+            .collect();
+        println!(
+            "{:<22} {:<8} {:<6} {:>6.3} {:>6.3} {:>13} {:>5} {:>15} {:>15} {:>4} {:>6.3}  {}",
+            name,
+            lp.name(),
+            w.level.name(),
+            s.median,
+            s.p90,
+            format!("{:.3} ({})", s.worst, s.worst_mount),
+            s.worse,
+            change(w.median_change, w.median_spread),
+            change(w.worst_change, w.worst_spread),
+            match verdict {
+                Some(true) => "yes",
+                Some(false) => "no",
+                None => "",
+            },
+            figures.cases_mean(w.level),
+            logs.join(" ")
+        );
+    }
 }

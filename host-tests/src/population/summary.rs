@@ -62,11 +62,9 @@ impl Ratio {
     }
 }
 
-/// One ratio at one level over the mounts.
+/// A ratio's order statistics over the mounts.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Line {
-    pub level: Level,
-    pub ratio: Ratio,
+pub struct Stats {
     pub mounts: usize,
     pub median: f64,
     /// Nearest rank: the smallest ratio at least 90 % of the mounts reach.
@@ -77,20 +75,56 @@ pub struct Line {
     pub worse: usize,
 }
 
+impl Stats {
+    /// Over `(ratio, mount)` pairs; `None` if there are none.
+    pub fn of(mut x: Vec<(f64, usize)>) -> Option<Stats> {
+        x.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let n = x.len();
+        let (worst, worst_mount) = *x.last()?;
+        Some(Stats {
+            mounts: n,
+            median: median_of_sorted(&x),
+            p90: x[(n * 9).div_ceil(10) - 1].0,
+            worst,
+            worst_mount,
+            worse: x.iter().filter(|(v, _)| *v > 1.0).count(),
+        })
+    }
+}
+
+/// The median of a non-empty list sorted by its first member.
+fn median_of_sorted(x: &[(f64, usize)]) -> f64 {
+    let n = x.len();
+    if n % 2 == 1 {
+        x[n / 2].0
+    } else {
+        (x[n / 2 - 1].0 + x[n / 2].0) / 2.0
+    }
+}
+
+/// One ratio at one level over the mounts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Line {
+    pub level: Level,
+    pub ratio: Ratio,
+    pub stats: Stats,
+}
+
 pub const CSV_HEADER: &str = "noise,ratio,mounts,median,p90,worst,worst_mount,worse";
 
 impl Line {
     pub fn csv(&self) -> String {
+        let s = &self.stats;
         format!(
             "{},{},{},{:.3},{:.3},{:.3},{},{}",
             self.level.name(),
             self.ratio.name(),
-            self.mounts,
-            self.median,
-            self.p90,
-            self.worst,
-            self.worst_mount,
-            self.worse
+            s.mounts,
+            s.median,
+            s.p90,
+            s.worst,
+            s.worst_mount,
+            s.worse
         )
     }
 }
@@ -100,29 +134,15 @@ pub fn summarize(rows: &[Row]) -> Vec<Line> {
     let mut lines = Vec::new();
     for level in [Level::NoiseFree, Level::Seeing] {
         let at: Vec<&Row> = rows.iter().filter(|r| level.holds(r)).collect();
-        if at.is_empty() {
-            continue;
-        }
         for ratio in Ratio::ALL {
-            let mut x: Vec<(f64, usize)> = at.iter().map(|r| (ratio.of(r), r.mount)).collect();
-            x.sort_by(|a, b| a.0.total_cmp(&b.0));
-            let n = x.len();
-            let median = if n % 2 == 1 {
-                x[n / 2].0
-            } else {
-                (x[n / 2 - 1].0 + x[n / 2].0) / 2.0
-            };
-            let (worst, worst_mount) = x[n - 1];
-            lines.push(Line {
-                level,
-                ratio,
-                mounts: n,
-                median,
-                p90: x[(n * 9).div_ceil(10) - 1].0,
-                worst,
-                worst_mount,
-                worse: x.iter().filter(|(v, _)| *v > 1.0).count(),
-            });
+            let x = at.iter().map(|r| (ratio.of(r), r.mount)).collect();
+            if let Some(stats) = Stats::of(x) {
+                lines.push(Line {
+                    level,
+                    ratio,
+                    stats,
+                });
+            }
         }
     }
     lines
@@ -154,19 +174,19 @@ mod tests {
             .collect();
         let lines = summarize(&rows);
         assert_eq!(lines.len(), 8);
-        let l = lines[0];
+        let (l, s) = (lines[0], lines[0].stats);
         assert_eq!(
-            (l.level, l.ratio, l.mounts),
+            (l.level, l.ratio, s.mounts),
             (Level::NoiseFree, Ratio::MkgpToReactive, 10)
         );
-        assert_eq!(l.median, 5.5 / 8.0);
-        assert_eq!(l.p90, 9.0 / 8.0);
-        assert_eq!((l.worst, l.worst_mount, l.worse), (10.0 / 8.0, 10, 2));
-        let fw = lines[2];
+        assert_eq!(s.median, 5.5 / 8.0);
+        assert_eq!(s.p90, 9.0 / 8.0);
+        assert_eq!((s.worst, s.worst_mount, s.worse), (10.0 / 8.0, 10, 2));
+        let fw = lines[2].stats;
         assert_eq!((fw.median, fw.worse), (0.5, 0));
         let seeing = lines[4];
         assert_eq!(
-            (seeing.level, seeing.mounts, seeing.median),
+            (seeing.level, seeing.stats.mounts, seeing.stats.median),
             (Level::Seeing, 1, 0.5)
         );
     }

@@ -1,0 +1,406 @@
+//! What each addition around the paper's model is worth (`guide-sim
+//! ablate`, issue 28 item 2): the population, the paper's cases and the
+//! PHD2 logs run with every addition on, then with each one switched off
+//! in turn (`mkgp_mount::model::additions`).
+//!
+//! An addition is measured in the loop it belongs to: the learner's and
+//! the loop's fast part's ([`FIRMWARE_ADDITIONS`]) in the firmware's (as
+//! `guide-sim st4`: fw MKGP over the guider alone), the model's in the
+//! model's (as `guide-sim table`: MKGP over the reactive guider). The
+//! baselines do not run the model, so they run once.
+//!
+//! To keep a run within the hour on a 2-core machine, each mount runs
+//! noise-free and at its seeing with its first run seed only (the
+//! population's rows average three at the seeing). The paper's cases run
+//! as their tables do (0 and 1 px, seeds 1-3).
+//!
+//! Worth is the change switching the addition off makes: its median and
+//! worst ratio over the mounts less those with all on (positive: the
+//! addition pays). The spread beside each is the standard deviation of
+//! that change over [`RESAMPLES`] redraws of the mounts with replacement
+//! (the bootstrap): what another population seed would move it by. The
+//! addition pays when it improves the median or the worst by more than
+//! its spread at either noise level.
+
+use crate::cases::Case;
+use crate::closed_loop::{self, Conditions, NOISY_SEEDS};
+use crate::data::{self, Error};
+use crate::gp::Carry;
+use crate::models::{self, Model};
+use crate::noise::SplitMix64;
+use crate::phd2_log;
+use crate::population::summary::{Level, Stats};
+use crate::population::Mount;
+use crate::replay;
+use crate::st4_sim::{self, Firmware, Setup};
+use crate::table::{self, Column};
+use mkgp_mount::model::additions::Additions;
+use rayon::prelude::*;
+
+/// The additions the firmware's loop measures: the learner's, and the
+/// loop's fast part's. The rest are the model's.
+pub const FIRMWARE_ADDITIONS: [&str; 7] = [
+    "bump",
+    "pulse_weight",
+    "pulse_damping",
+    "trusted_gate",
+    "feed_forward_horizon",
+    "saved_share",
+    "calibration_watch",
+];
+
+/// Redraws of the mounts for the spread.
+pub const RESAMPLES: usize = 1000;
+
+/// The paper's noise levels, px.
+const TABLE_NOISE_PX: [f64; 2] = [0.0, 1.0];
+
+/// Where an addition is measured.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Loop {
+    /// The model's closed loop, MKGP over the reactive guider.
+    Model,
+    /// The firmware's loop, fw MKGP over the guider alone.
+    Firmware,
+}
+
+impl Loop {
+    pub fn of(addition: &str) -> Loop {
+        if FIRMWARE_ADDITIONS.contains(&addition) {
+            Loop::Firmware
+        } else {
+            Loop::Model
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Loop::Model => "model",
+            Loop::Firmware => "firmware",
+        }
+    }
+}
+
+const LEVELS: [Level; 2] = [Level::NoiseFree, Level::Seeing];
+
+fn noise_px(mount: &Mount, level: Level) -> f64 {
+    match level {
+        Level::NoiseFree => 0.0,
+        Level::Seeing => mount.seeing_px,
+    }
+}
+
+/// RMS of MKGP (`Some(additions)`) or of the loop's baseline (`None`) on
+/// `mount` at `level`, from its first run seed.
+fn mount_rms(mount: &Mount, lp: Loop, level: Level, mkgp: Option<Additions>) -> f64 {
+    let noise = noise_px(mount, level);
+    let seed = mount.seeds()[0];
+    match lp {
+        Loop::Model => {
+            let seeds = [seed];
+            match mkgp {
+                Some(a) => {
+                    closed_loop::rms_in(&mount.case, noise, &seeds, &mount.conditions(), || {
+                        models::carrying(Model::Mkgp, None, None, Carry::default(), a)
+                    })
+                }
+                None => table::rms_in(
+                    &mount.case,
+                    noise,
+                    &seeds,
+                    &mount.conditions(),
+                    Column::Reactive,
+                ),
+            }
+        }
+        Loop::Firmware => {
+            let (firmware, additions) = match mkgp {
+                Some(a) => (Firmware::Mkgp, a),
+                None => (Firmware::GuiderOnly, Additions::ALL),
+            };
+            let setup = Setup {
+                additions,
+                ..mount.setup()
+            };
+            st4_sim::run_on(&mount.case, firmware, noise, seed, setup, mount.config()).rms
+        }
+    }
+}
+
+/// RMS of MKGP or the baseline on a paper case, as its table's cell.
+fn case_rms(case: &Case, lp: Loop, noise: f64, mkgp: Option<Additions>) -> f64 {
+    match lp {
+        Loop::Model => match mkgp {
+            Some(a) => closed_loop::rms_in(case, noise, &NOISY_SEEDS, &Conditions::PAPER, || {
+                models::carrying(Model::Mkgp, None, None, Carry::default(), a)
+            }),
+            None => closed_loop::rms_at(case, noise, || table::make(Column::Reactive)),
+        },
+        Loop::Firmware => {
+            let (firmware, additions) = match mkgp {
+                Some(a) => (Firmware::Mkgp, a),
+                None => (Firmware::GuiderOnly, Additions::ALL),
+            };
+            let setup = Setup {
+                additions,
+                ..Setup::default()
+            };
+            st4_sim::mean_rms(case, firmware, noise, setup)
+        }
+    }
+}
+
+/// One configuration's figures in one loop.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Figures {
+    /// Per level (noise-free, seeing), per mount in order: MKGP over the
+    /// baseline.
+    pub mounts: [Vec<f64>; 2],
+    /// Per paper case and noise level (0, 1 px): MKGP over the baseline.
+    pub cases: Vec<f64>,
+    /// The PHD2 logs' MKGP gain over hysteresis, % (the model's loop
+    /// only: the replay runs the model, not the learner).
+    pub log_gains_pct: Vec<f64>,
+}
+
+impl Figures {
+    /// The mean ratio over the paper's cases at the table's level that
+    /// stands for `level` (0 px; 1 px for the seeing).
+    pub fn cases_mean(&self, level: Level) -> f64 {
+        let at: Vec<f64> = self
+            .cases
+            .iter()
+            .skip(level_index(level))
+            .step_by(TABLE_NOISE_PX.len())
+            .copied()
+            .collect();
+        at.iter().sum::<f64>() / at.len() as f64
+    }
+}
+
+/// What a loop's figures are measured against: the baselines, once.
+pub struct Bench<'a> {
+    pub lp: Loop,
+    pub mounts: &'a [Mount],
+    pub cases: &'a [Case],
+    pub logs: &'a [phd2_log::GuideLog],
+    /// Per level, per mount; then per case and level.
+    baseline_mounts: [Vec<f64>; 2],
+    baseline_cases: Vec<f64>,
+}
+
+impl<'a> Bench<'a> {
+    /// Runs the baselines.
+    pub fn new(
+        lp: Loop,
+        mounts: &'a [Mount],
+        cases: &'a [Case],
+        logs: &'a [phd2_log::GuideLog],
+    ) -> Self {
+        let baseline_mounts = LEVELS.map(|l| {
+            mounts
+                .par_iter()
+                .map(|m| mount_rms(m, lp, l, None))
+                .collect()
+        });
+        let baseline_cases = case_cells(cases)
+            .par_iter()
+            .map(|&(c, noise)| case_rms(c, lp, noise, None))
+            .collect();
+        Bench {
+            lp,
+            mounts,
+            cases,
+            logs,
+            baseline_mounts,
+            baseline_cases,
+        }
+    }
+
+    /// MKGP with `additions` over the baselines.
+    pub fn figures(&self, additions: Additions) -> Result<Figures, Error> {
+        let lp = self.lp;
+        let mounts = LEVELS.map(|l| {
+            let rms: Vec<f64> = self
+                .mounts
+                .par_iter()
+                .map(|m| mount_rms(m, lp, l, Some(additions)))
+                .collect();
+            let base = &self.baseline_mounts[level_index(l)];
+            rms.iter().zip(base).map(|(r, b)| r / b).collect()
+        });
+        let cases = case_cells(self.cases)
+            .par_iter()
+            .map(|&(c, noise)| case_rms(c, lp, noise, Some(additions)))
+            .collect::<Vec<f64>>()
+            .iter()
+            .zip(&self.baseline_cases)
+            .map(|(r, b)| r / b)
+            .collect();
+        let log_gains_pct = match lp {
+            Loop::Model => self
+                .logs
+                .par_iter()
+                .map(|log| replay::gain_with(log, Model::Mkgp, additions))
+                .collect::<Result<_, _>>()?,
+            Loop::Firmware => Vec::new(),
+        };
+        Ok(Figures {
+            mounts,
+            cases,
+            log_gains_pct,
+        })
+    }
+
+    /// The mounts' numbers, in order.
+    pub fn mount_numbers(&self) -> Vec<usize> {
+        self.mounts.iter().map(|m| m.index).collect()
+    }
+}
+
+fn level_index(level: Level) -> usize {
+    match level {
+        Level::NoiseFree => 0,
+        Level::Seeing => 1,
+    }
+}
+
+/// Each paper case at each of the table's noise levels, in that order.
+fn case_cells(cases: &[Case]) -> Vec<(&Case, f64)> {
+    cases
+        .iter()
+        .flat_map(|c| TABLE_NOISE_PX.map(|n| (c, n)))
+        .collect()
+}
+
+/// What switching one addition off does at one level.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Worth {
+    pub level: Level,
+    /// The mounts' ratios with the addition off.
+    pub off: Stats,
+    /// Median and worst with it off less with all on (positive: it pays).
+    pub median_change: f64,
+    pub worst_change: f64,
+    /// Their bootstrap standard deviations over redrawn mounts.
+    pub median_spread: f64,
+    pub worst_spread: f64,
+}
+
+impl Worth {
+    /// The addition improves the median or the worst by more than its
+    /// spread.
+    pub fn pays(&self) -> bool {
+        self.median_change > self.median_spread || self.worst_change > self.worst_spread
+    }
+}
+
+/// All on against one off, per level; `numbers`: the mounts' numbers in
+/// the figures' order.
+pub fn worth(numbers: &[usize], on: &Figures, off: &Figures) -> [Worth; 2] {
+    LEVELS.map(|level| {
+        let k = level_index(level);
+        let (a, b) = (&on.mounts[k], &off.mounts[k]);
+        let stats = |x: &[f64]| {
+            Stats::of(x.iter().copied().zip(numbers.iter().copied()).collect())
+                .unwrap_or_else(|| panic!("ablation of no mounts"))
+        };
+        let (s_on, s_off) = (stats(a), stats(b));
+        let mut rng = SplitMix64::new(RESAMPLES as u64 + k as u64);
+        let n = a.len();
+        let (mut dm, mut dw) = (Vec::new(), Vec::new());
+        for _ in 0..RESAMPLES {
+            let pick: Vec<usize> = (0..n).map(|_| rng.below(n as u64) as usize).collect();
+            let draw = |x: &[f64]| stats(&pick.iter().map(|&i| x[i]).collect::<Vec<_>>());
+            let (r_on, r_off) = (draw(a), draw(b));
+            dm.push(r_off.median - r_on.median);
+            dw.push(r_off.worst - r_on.worst);
+        }
+        Worth {
+            level,
+            off: s_off,
+            median_change: s_off.median - s_on.median,
+            worst_change: s_off.worst - s_on.worst,
+            median_spread: std_dev(&dm),
+            worst_spread: std_dev(&dw),
+        }
+    })
+}
+
+fn std_dev(x: &[f64]) -> f64 {
+    let n = x.len() as f64;
+    let mean = x.iter().sum::<f64>() / n;
+    (x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt()
+}
+
+/// The PHD2 logs of host-tests/data.
+pub fn phd2_logs() -> Result<Vec<phd2_log::GuideLog>, Error> {
+    data::phd2_logs()?
+        .iter()
+        .map(|p| phd2_log::load(p))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn figures(noise_free: Vec<f64>, seeing: Vec<f64>) -> Figures {
+        Figures {
+            mounts: [noise_free, seeing],
+            cases: vec![0.5, 0.9, 0.7, 1.1],
+            log_gains_pct: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn an_addition_that_changes_nothing_does_not_pay() {
+        let on = figures(vec![0.5, 0.6, 0.7, 0.8, 0.9], vec![0.7; 5]);
+        for w in worth(&[1, 2, 3, 4, 5], &on, &on) {
+            assert_eq!((w.median_change, w.worst_change), (0.0, 0.0));
+            assert_eq!((w.median_spread, w.worst_spread), (0.0, 0.0));
+            assert!(!w.pays());
+        }
+        assert_eq!(on.cases_mean(Level::NoiseFree), 0.6);
+        assert_eq!(on.cases_mean(Level::Seeing), 1.0);
+    }
+
+    #[test]
+    fn an_addition_pays_where_it_helps_beyond_the_spread() {
+        let numbers: Vec<usize> = (1..=40).collect();
+        let base: Vec<f64> = numbers.iter().map(|&k| 0.4 + 0.01 * k as f64).collect();
+        let on = figures(base.clone(), base.clone());
+        // Off: every mount 0.1 worse noise-free (pays on the median); at the
+        // seeing one mount worse (only its worst moves), one better.
+        let mut seeing = base.clone();
+        seeing[39] = 1.3;
+        seeing[0] = 0.1;
+        let off = figures(base.iter().map(|r| r + 0.1).collect(), seeing);
+        let [free, at_seeing] = worth(&numbers, &on, &off);
+        assert!((free.median_change - 0.1).abs() < 1e-12, "{free:?}");
+        assert!(free.median_spread < 1e-12 && free.pays(), "{free:?}");
+        assert_eq!((free.off.worst_mount, free.off.worse), (40, 0));
+        assert_eq!(at_seeing.median_change, 0.0);
+        assert!(
+            (at_seeing.worst_change - 0.5).abs() < 1e-12,
+            "{at_seeing:?}"
+        );
+        assert!(
+            at_seeing.worst_spread > 0.0 && at_seeing.pays(),
+            "{at_seeing:?}"
+        );
+        assert_eq!(at_seeing.off.worse, 1);
+    }
+
+    #[test]
+    fn the_learners_additions_run_in_the_firmwares_loop() {
+        for name in Additions::NAMES {
+            let fw = FIRMWARE_ADDITIONS.contains(&name);
+            assert_eq!(Loop::of(name) == Loop::Firmware, fw, "{name}");
+        }
+        assert!(FIRMWARE_ADDITIONS
+            .iter()
+            .all(|n| Additions::NAMES.contains(n)));
+        assert_eq!(Loop::of("measured_subset"), Loop::Model);
+    }
+}
