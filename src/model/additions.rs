@@ -43,6 +43,51 @@ pub struct Additions {
     /// short kernels rank high near the frame though they carry nothing
     /// (`model::gp::subset`). Off: every cell competes, as in the paper.
     pub measured_subset: bool,
+    /// Stage discovery: a candidate must be a local maximum of the
+    /// spectrum, not the skirt of a notched line's main lobe
+    /// (`model::spectral::discovery`). Off: the strongest bin with power
+    /// that the notches and the guard leave, as in the paper.
+    pub local_maximum: bool,
+    /// Stage discovery: notches 6 % wide in frequency, as the
+    /// commensurability guard, so that C5's 155 s stage beside the worm's
+    /// 144 s division is seen. Off: the paper's 8 %.
+    pub narrow_notch: bool,
+    /// Stage discovery: a found stage whose smoothed amplitude ratio stays
+    /// below half the gate's lower threshold for 100 frames is given up and
+    /// searched for again. Off: a found stage is kept.
+    pub drop_faded: bool,
+    /// Stage discovery: the search waits until the worm's period has
+    /// roughly converged (0.3), and the amplitude ratio that drives a gate
+    /// is smoothed with weight 0.03 per frame. Off: the search runs from
+    /// the first spectrum, and the ratio's weight is 0.1 (the period
+    /// tracker's, the setting before the addition).
+    pub convergence_gate: bool,
+    /// Stage discovery: a candidate is refused until the data spans 1.5
+    /// beat periods against every known stage (the paper's open item).
+    /// Off: no guard.
+    pub resolution_guard: bool,
+    /// Stage discovery: a peak in the notch or guard of a known period's
+    /// harmonic (k >= 2) is admitted once the data resolves it from that
+    /// harmonic. Off: refused whatever the span, as in the paper.
+    pub near_harmonic: bool,
+    /// Stage discovery: a found stage whose gate is not fully open moves to
+    /// twice or half its period where that line has twice its power. Off:
+    /// it stays.
+    pub octave_move: bool,
+    /// Stage discovery: a found stage moves up to twice its period where
+    /// that line is its fundamental (a line of its own with at least half
+    /// its power). Off: it stays.
+    pub fundamental_move: bool,
+    /// Stage discovery: a found stage follows its peak in a band of 10 %
+    /// around its own period (where the octave moves are looked at). Off:
+    /// every spectrum it takes the strongest admissible peak of the search
+    /// band, as when it was found, and never moves to an octave.
+    pub follow_band: bool,
+    /// Stage discovery: a found stage follows its line past the later
+    /// stages that carry no weight yet (an ungated third stage's period
+    /// does not notch the second's line). Off: every found stage's period
+    /// is notched and guarded, as for a new stage.
+    pub follow_past: bool,
 }
 
 /// A name [`Additions::set`] does not know.
@@ -60,10 +105,20 @@ impl Additions {
         saved_share: true,
         calibration_watch: true,
         measured_subset: true,
+        local_maximum: true,
+        narrow_notch: true,
+        drop_faded: true,
+        convergence_gate: true,
+        resolution_guard: true,
+        near_harmonic: true,
+        octave_move: true,
+        fundamental_move: true,
+        follow_band: true,
+        follow_past: true,
     };
 
     /// Each addition's name, as [`set`](Self::set) takes it.
-    pub const NAMES: [&'static str; 8] = [
+    pub const NAMES: [&'static str; 18] = [
         "bump",
         "pulse_weight",
         "pulse_damping",
@@ -72,6 +127,16 @@ impl Additions {
         "saved_share",
         "calibration_watch",
         "measured_subset",
+        "local_maximum",
+        "narrow_notch",
+        "drop_faded",
+        "convergence_gate",
+        "resolution_guard",
+        "near_harmonic",
+        "octave_move",
+        "fundamental_move",
+        "follow_band",
+        "follow_past",
     ];
 
     /// Switches the addition called `name` on or off.
@@ -85,6 +150,16 @@ impl Additions {
             "saved_share" => &mut self.saved_share,
             "calibration_watch" => &mut self.calibration_watch,
             "measured_subset" => &mut self.measured_subset,
+            "local_maximum" => &mut self.local_maximum,
+            "narrow_notch" => &mut self.narrow_notch,
+            "drop_faded" => &mut self.drop_faded,
+            "convergence_gate" => &mut self.convergence_gate,
+            "resolution_guard" => &mut self.resolution_guard,
+            "near_harmonic" => &mut self.near_harmonic,
+            "octave_move" => &mut self.octave_move,
+            "fundamental_move" => &mut self.fundamental_move,
+            "follow_band" => &mut self.follow_band,
+            "follow_past" => &mut self.follow_past,
             _ => return Err(UnknownAddition),
         };
         *switch = on;

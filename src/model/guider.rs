@@ -767,15 +767,21 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
                     self.worm_peak_s = worm.map(|p| p.period_s);
                     if N > 1 {
                         let span = self.grid.len() as f64 * CELL_S;
-                        self.discovery
-                            .scan(&spectrum, &mut self.trackers, worm, span);
+                        self.discovery.scan(
+                            &spectrum,
+                            &mut self.trackers,
+                            worm,
+                            span,
+                            &self.config.additions,
+                        );
                     }
                 }
             }
             if let Some(p) = self.worm_peak_s {
                 self.trackers[0].observe(p);
             }
-            self.discovery.step(&mut self.trackers, &mut self.gates);
+            self.discovery
+                .step(&mut self.trackers, &mut self.gates, &self.config.additions);
         }
         let periods = self.trackers.map(|t| t.period_s);
         self.kernel = Kernel::new(&periods, &self.restore.fit_gates(&self.gates));

@@ -15,8 +15,10 @@
 //! its own period; its evidence gate opens with the peak's amplitude
 //! relative to the worm's.
 
+use crate::model::additions::Additions;
 use crate::model::gp::grid::CELL_S;
 use crate::model::numeric::scalar::Scalar;
+use crate::model::spectral::fft::FFT_LEN;
 use crate::model::spectral::period::PeriodTracker;
 use crate::model::spectral::spectrum::{bin_period, period_bin, Peak, Spectrum, NYQUIST_BIN};
 
@@ -26,6 +28,8 @@ use crate::model::spectral::spectrum::{bin_period, period_bin, Peak, Spectrum, N
 /// admits it. With candidates required to be local maxima, the notch need
 /// not be wider than the guard. See `docs/model.md`.
 pub const NOTCH_WIDTH: f64 = 0.06;
+/// The paper's notch, without the addition `narrow_notch`.
+pub const PAPER_NOTCH_WIDTH: f64 = 0.08;
 /// Multiples `k P` of a known period that are notched, `k = 1..=`.
 pub const NOTCH_MULTIPLES: u32 = 5;
 /// Divisions `P / k` of a known period that are notched, `k = 2..=`.
@@ -64,6 +68,9 @@ pub const GATE_FULL: f64 = 0.35;
 /// opens over some 30 frames, so that one lucky spectrum does not let a
 /// stage in.
 pub const RATIO_SMOOTHING: f64 = 0.03;
+/// The weight without the addition `convergence_gate`: the period
+/// tracker's, which the ratio had before.
+pub const UNGATED_RATIO_SMOOTHING: f64 = 0.1;
 /// The worm's period convergence (0..=1) from which the search runs.
 pub const SEARCH_MIN_CONVERGENCE: f64 = 0.3;
 /// A found stage whose smoothed ratio is below this after this many frames
@@ -110,13 +117,14 @@ fn division(p: f64, k: f64) -> f64 {
     p / k
 }
 
-/// Whether a peak at `period` lies in the notch of a known period, at a
-/// multiple or division that `span_s` of data does not resolve it from
-/// (span 0: any). `lines[i]` is the line of `known[i]` in this spectrum.
-pub fn notched(period: f64, known: &[f64], lines: &[f64], span_s: f64) -> bool {
+/// Whether a peak at `period` lies in the notch (`width` either side,
+/// relative) of a known period, at a multiple or division that `span_s` of
+/// data does not resolve it from (span 0: any). `lines[i]` is the line of
+/// `known[i]` in this spectrum.
+pub fn notched(period: f64, known: &[f64], lines: &[f64], span_s: f64, width: f64) -> bool {
     known.iter().zip(lines).any(|(&p, &line)| {
         let near = |k: u32, harmonic: fn(f64, f64) -> f64| {
-            (harmonic(p, k as f64) / period - 1.0).abs() <= NOTCH_WIDTH
+            (harmonic(p, k as f64) / period - 1.0).abs() <= width
                 && unresolved(period, (p, line), k, harmonic, span_s)
         };
         (1..=NOTCH_MULTIPLES).any(|k| near(k, multiple))
@@ -164,15 +172,26 @@ fn strongest_peak<S: Scalar>(
     known: &[f64],
     lines: &[f64],
     span_s: f64,
+    adds: &Additions,
 ) -> Option<Peak> {
     let lo = libm::ceil(lo.max(1.0)) as usize;
     let hi = (libm::floor(hi) as usize).min(NYQUIST_BIN);
+    let width = if adds.narrow_notch {
+        NOTCH_WIDTH
+    } else {
+        PAPER_NOTCH_WIDTH
+    };
+    // No span resolves a harmonic without `near_harmonic`.
+    let span_s = if adds.near_harmonic { span_s } else { 0.0 };
+    // A bin must rise above the bins this far either side: its neighbours,
+    // or without `local_maximum` bins outside the spectrum (power 0).
+    let d = if adds.local_maximum { 1 } else { FFT_LEN };
     spectrum.strongest(lo, hi, |k| {
         let p = bin_period(k as f64);
         let power = spectrum.power(k);
-        power > spectrum.power(k - 1)
-            && power > spectrum.power(k + 1)
-            && !notched(p, known, lines, span_s)
+        power > spectrum.power(k.saturating_sub(d))
+            && power > spectrum.power(k + d)
+            && !notched(p, known, lines, span_s, width)
             && !commensurate(p, known, lines, span_s)
     })
 }
@@ -185,6 +204,7 @@ fn peak_near<S: Scalar>(
     known: &[f64],
     lines: &[f64],
     span_s: f64,
+    adds: &Additions,
 ) -> Option<Peak> {
     strongest_peak(
         spectrum,
@@ -192,6 +212,7 @@ fn peak_near<S: Scalar>(
         known,
         lines,
         span_s,
+        adds,
     )
 }
 
@@ -202,8 +223,11 @@ struct Octaves {
     /// The stage's period and the power of its own peak (0: none).
     own: f64,
     own_power: f64,
-    /// The stage's gate is not fully open.
+    /// The stage's gate is not fully open, and a weak stage may move
+    /// where the energy is (`octave_move`).
     weak: bool,
+    /// The stage may move up to its fundamental (`fundamental_move`).
+    fundamental: bool,
     worm_power: f64,
     /// The periods a stage may move to.
     range: (f64, f64),
@@ -224,15 +248,17 @@ impl Octaves {
         known: &[f64],
         lines: &[f64],
         span_s: f64,
+        adds: &Additions,
     ) -> Option<Peak> {
         let movable = |p: f64| p >= self.range.0 && p <= self.range.1;
         let octave = |p: f64| {
             movable(p)
-                .then(|| peak_near(spectrum, p, known, lines, span_s))
+                .then(|| peak_near(spectrum, p, known, lines, span_s, adds))
                 .flatten()
         };
         let up = octave(2.0 * self.own).filter(|r| {
-            let fundamental = r.power >= self.own_power / MOVE_POWER_RATIO
+            let fundamental = self.fundamental
+                && r.power >= self.own_power / MOVE_POWER_RATIO
                 && r.power >= GATE_OFF * GATE_OFF * self.worm_power;
             fundamental || (self.weak && r.power > MOVE_POWER_RATIO * self.own_power)
         });
@@ -304,18 +330,20 @@ impl<const N: usize> Discovery<N> {
     }
 
     /// Read a new spectrum: find or follow every stage's peak.
-    /// `worm` is the worm's peak (the strongest) in it, `span_s` the data span.
+    /// `worm` is the worm's peak (the strongest) in it, `span_s` the data
+    /// span; `adds` switches the additions of the search.
     pub fn scan<S: Scalar>(
         &mut self,
         spectrum: &Spectrum<'_, S>,
         trackers: &mut [PeriodTracker; N],
         worm: Option<Peak>,
         span_s: f64,
+        adds: &Additions,
     ) {
         // The notches and the guard stand around the worm's period: while
         // that is still far from its spectral estimate there is nothing to
         // place them by, and what the search finds is noise (log 04).
-        if trackers[0].convergence() < SEARCH_MIN_CONVERGENCE {
+        if adds.convergence_gate && trackers[0].convergence() < SEARCH_MIN_CONVERGENCE {
             for stage in &mut self.stages {
                 stage.peak_period_s = None;
                 stage.ratio_now = 0.0;
@@ -329,7 +357,7 @@ impl<const N: usize> Discovery<N> {
             // carry no weight yet: with three stages, an ungated third
             // stage wandering over noise peaks otherwise notches the
             // second's line and closes its gate (C6, docs/model.md).
-            let following = self.stages[s].found;
+            let following = adds.follow_past && self.stages[s].found;
             let mut known = [0.0; N];
             let mut lines = [0.0; N];
             let mut n_known = 0;
@@ -356,17 +384,18 @@ impl<const N: usize> Discovery<N> {
             }
             let band_lo = 4.0 * CELL_S;
             let band_hi = BAND_WORM_PERIODS * trackers[0].period_s;
-            let peak = if stage.found {
+            let peak = if stage.found && adds.follow_band {
                 let own = trackers[s].period_s;
-                let mut peak = peak_near(spectrum, own, known, lines, span_s);
+                let mut peak = peak_near(spectrum, own, known, lines, span_s, adds);
                 let octaves = Octaves {
                     own,
                     own_power: peak.map_or(0.0, |p| p.power),
-                    weak: stage.ratio < GATE_FULL,
+                    weak: adds.octave_move && stage.ratio < GATE_FULL,
+                    fundamental: adds.fundamental_move,
                     worm_power,
                     range: (band_lo, MOVE_MAX_WORM_PERIODS * trackers[0].period_s),
                 };
-                if let Some(r) = octaves.choose(spectrum, known, lines, span_s) {
+                if let Some(r) = octaves.choose(spectrum, known, lines, span_s, adds) {
                     peak = Some(r);
                     trackers[s] = PeriodTracker {
                         period_s: r.period_s,
@@ -379,8 +408,8 @@ impl<const N: usize> Discovery<N> {
                     Some(p) => band_bins(p, FOLLOW_WIDTH),
                     None => (period_bin(band_hi), period_bin(band_lo)),
                 };
-                strongest_peak(spectrum, band, known, lines, span_s)
-                    .filter(|p| resolved(p.period_s, known, span_s))
+                strongest_peak(spectrum, band, known, lines, span_s, adds)
+                    .filter(|p| !adds.resolution_guard || resolved(p.period_s, known, span_s))
             };
             let Some(peak) = peak else { continue };
             if !stage.found {
@@ -393,10 +422,20 @@ impl<const N: usize> Discovery<N> {
     }
 
     /// Once per frame: follow the peaks found by the last scan.
-    pub fn step(&mut self, trackers: &mut [PeriodTracker; N], gates: &mut [f64; N]) {
+    pub fn step(
+        &mut self,
+        trackers: &mut [PeriodTracker; N],
+        gates: &mut [f64; N],
+        adds: &Additions,
+    ) {
+        let w = if adds.convergence_gate {
+            RATIO_SMOOTHING
+        } else {
+            UNGATED_RATIO_SMOOTHING
+        };
         for s in 1..N {
             let stage = &mut self.stages[s];
-            stage.ratio = (1.0 - RATIO_SMOOTHING) * stage.ratio + RATIO_SMOOTHING * stage.ratio_now;
+            stage.ratio = (1.0 - w) * stage.ratio + w * stage.ratio_now;
             if let Some(p) = stage.peak_period_s {
                 trackers[s].observe(p);
             }
@@ -404,7 +443,10 @@ impl<const N: usize> Discovery<N> {
                 stage.frames_found = stage.frames_found.saturating_add(1);
                 // A peak that has faded (or was never more than a skirt) is
                 // given up, so that the search can find the real one.
-                if stage.frames_found > FORGET_AFTER_FRAMES && stage.ratio < FORGET_RATIO {
+                if adds.drop_faded
+                    && stage.frames_found > FORGET_AFTER_FRAMES
+                    && stage.ratio < FORGET_RATIO
+                {
                     *stage = StageSearch::default();
                 }
             }
@@ -421,12 +463,12 @@ mod tests {
     fn notches_cover_harmonics_and_divisions() {
         let known = [432.0];
         for p in [432.0, 864.0, 2160.0, 216.0, 144.0, 420.0, 150.0] {
-            assert!(notched(p, &known, &known, 0.0), "{p}");
+            assert!(notched(p, &known, &known, 0.0, NOTCH_WIDTH), "{p}");
         }
         // C5's second stage, 7 % from the worm's 144 s division: the paper's
         // 8 % notch hid it; ours is as wide as the commensurability guard.
         for p in [380.0, 288.0, 155.0, 110.0, 108.0] {
-            assert!(!notched(p, &known, &known, 0.0), "{p}");
+            assert!(!notched(p, &known, &known, 0.0, NOTCH_WIDTH), "{p}");
         }
     }
 
@@ -451,10 +493,12 @@ mod tests {
         let before = 0.9 * HARMONIC_BEATS * beat;
         let after = 1.1 * HARMONIC_BEATS * beat;
         assert!(
-            notched(period, &worm, &worm, before) && commensurate(period, &worm, &worm, before)
+            notched(period, &worm, &worm, before, NOTCH_WIDTH)
+                && commensurate(period, &worm, &worm, before)
         );
         assert!(
-            !notched(period, &worm, &worm, after) && !commensurate(period, &worm, &worm, after)
+            !notched(period, &worm, &worm, after, NOTCH_WIDTH)
+                && !commensurate(period, &worm, &worm, after)
         );
         // Near the third and fourth harmonics, either side.
         for (period, k) in [(139.8, 3.0), (151.6, 3.0), (105.9, 4.0), (112.5, 4.0)] {
@@ -462,7 +506,10 @@ mod tests {
             let before = 0.9 * HARMONIC_BEATS * beat;
             let after = 1.1 * HARMONIC_BEATS * beat;
             assert!(commensurate(period, &worm, &worm, before), "{period}");
-            assert!(!notched(period, &worm, &worm, after), "{period}");
+            assert!(
+                !notched(period, &worm, &worm, after, NOTCH_WIDTH),
+                "{period}"
+            );
             assert!(!commensurate(period, &worm, &worm, after), "{period}");
         }
         // A multiple of a known stage (a slower stage 3 % off twice a 110 s
@@ -491,7 +538,7 @@ mod tests {
             }
             for k in 2..=3 {
                 assert!(
-                    notched(432.0 / k as f64, &[432.0], &[432.0], span),
+                    notched(432.0 / k as f64, &[432.0], &[432.0], span, NOTCH_WIDTH),
                     "{k} {span}"
                 );
             }
@@ -501,10 +548,13 @@ mod tests {
             // A worm tracked 4 % long (300 s for 288 s) still bars its true
             // second harmonic, by its line in the spectrum.
             assert!(commensurate(144.0, &[300.0], &[288.0], span), "{span}");
-            assert!(notched(144.0, &[300.0], &[288.0], span), "{span}");
+            assert!(
+                notched(144.0, &[300.0], &[288.0], span, NOTCH_WIDTH),
+                "{span}"
+            );
             // The known period itself, and 5 % beside it, whatever the span.
             assert!(
-                notched(432.0, &[432.0], &[432.0], span)
+                notched(432.0, &[432.0], &[432.0], span, NOTCH_WIDTH)
                     && commensurate(432.0, &[432.0], &[432.0], span)
             );
             assert!(commensurate(411.4, &[432.0], &[432.0], span));
@@ -534,7 +584,7 @@ mod tests {
         trackers[0].disagreement = 0.0;
         let mut d: Discovery<2> = Discovery::new([None, None]);
         let span = grid.len() as f64 * CELL_S;
-        d.scan(&spectrum, &mut trackers, Some(worm), span);
+        d.scan(&spectrum, &mut trackers, Some(worm), span, &Additions::ALL);
         d.saved(1).0.then_some(trackers[1].period_s)
     }
 
@@ -605,6 +655,7 @@ mod tests {
             &mut trackers,
             Some(worm),
             grid.len() as f64 * CELL_S,
+            &Additions::ALL,
         );
         // The 144 s harmonic is notched; the strongest admissible peak is
         // the second stage's fundamental.
@@ -614,7 +665,7 @@ mod tests {
             trackers[1]
         );
         for _ in 0..200 {
-            d.step(&mut trackers, &mut gates);
+            d.step(&mut trackers, &mut gates, &Additions::ALL);
         }
         // Amplitude ratio 4.5 / 9: the gate opens fully.
         assert!(d.ratio(1) > GATE_FULL, "{}", d.ratio(1));
@@ -622,8 +673,14 @@ mod tests {
         // With the worm still unsettled nothing is searched.
         let mut fresh: Discovery<2> = Discovery::new([None, None]);
         let mut unsettled = [PeriodTracker::new(300.0); 2];
-        fresh.scan(&spectrum, &mut unsettled, Some(worm), 4000.0);
-        fresh.step(&mut unsettled, &mut gates);
+        fresh.scan(
+            &spectrum,
+            &mut unsettled,
+            Some(worm),
+            4000.0,
+            &Additions::ALL,
+        );
+        fresh.step(&mut unsettled, &mut gates, &Additions::ALL);
         assert_eq!(gates[1], 0.0);
     }
 
@@ -640,9 +697,9 @@ mod tests {
         trackers[0].disagreement = 0.0;
         let mut d: Discovery<2> = Discovery::new([None, Some(seed)]);
         let span = grid.len() as f64 * CELL_S;
-        d.scan(&spectrum, &mut trackers, worm, span);
+        d.scan(&spectrum, &mut trackers, worm, span, &Additions::ALL);
         assert!((trackers[1].period_s - seed).abs() < 1.5, "{trackers:?}");
-        d.scan(&spectrum, &mut trackers, worm, span);
+        d.scan(&spectrum, &mut trackers, worm, span, &Additions::ALL);
         trackers[1].period_s
     }
 
@@ -670,6 +727,234 @@ mod tests {
         };
         let got = followed_stage(g, 155.0);
         assert!((got - 155.0).abs() < 1.5, "{got}");
+    }
+
+    /// The additions as the firmware runs them, but `name` off.
+    fn without(name: &str) -> Additions {
+        let mut adds = Additions::ALL;
+        adds.set(name, false).unwrap();
+        adds
+    }
+
+    /// A scripted spectrum: the worm's line at bin 40 (512 s) with power
+    /// 10,000 and each `(bin, power)` a line, every line's neighbours at
+    /// half its power (its parabola's vertex on the bin itself).
+    fn lines(at: &[(usize, f64)]) -> [f64; crate::model::spectral::fft::FFT_LEN] {
+        let mut buf = [0.0; crate::model::spectral::fft::FFT_LEN];
+        for &(k, power) in [(40, 1e4)].iter().chain(at) {
+            buf[k] = power;
+            buf[k - 1] = 0.5 * power;
+            buf[k + 1] = 0.5 * power;
+        }
+        buf
+    }
+
+    /// The worm tracked at 512 s and converged; the other stages at
+    /// `periods`.
+    fn tracked<const N: usize>(periods: [f64; N]) -> [PeriodTracker; N] {
+        let mut trackers = periods.map(PeriodTracker::new);
+        trackers[0] = PeriodTracker::new(bin_period(40.0));
+        trackers[0].disagreement = 0.0;
+        trackers
+    }
+
+    /// One scan of `buf` over `span_s` s of data.
+    fn scan_scripted<const N: usize>(
+        d: &mut Discovery<N>,
+        trackers: &mut [PeriodTracker; N],
+        buf: &[f64; crate::model::spectral::fft::FFT_LEN],
+        span_s: f64,
+        adds: &Additions,
+    ) {
+        use crate::model::spectral::spectrum::Spectrum;
+        let spectrum = Spectrum::scripted(buf);
+        let worm = spectrum.strongest(0, NYQUIST_BIN, |_| true);
+        d.scan(&spectrum, trackers, worm, span_s, adds);
+    }
+
+    /// The period a fresh search finds for stage 1, if any.
+    fn found(
+        buf: &[f64; crate::model::spectral::fft::FFT_LEN],
+        mut trackers: [PeriodTracker; 2],
+        span_s: f64,
+        adds: &Additions,
+    ) -> Option<f64> {
+        let mut d: Discovery<2> = Discovery::new([None, None]);
+        scan_scripted(&mut d, &mut trackers, buf, span_s, adds);
+        d.saved(1).0.then_some(trackers[1].period_s)
+    }
+
+    #[test]
+    fn without_local_maximum_the_skirt_of_a_notched_line_is_a_stage() {
+        // The worm tracked at 500 s notches its line's bins up to 43; the
+        // skirt falls on through 44 (465 s), resolved from the worm.
+        let mut buf = lines(&[]);
+        for (k, power) in [(42, 2500.0), (43, 1500.0), (44, 1000.0), (45, 500.0)] {
+            buf[k] = power;
+        }
+        let mut trackers = tracked([0.0; 2]);
+        trackers[0].period_s = 500.0;
+        assert_eq!(found(&buf, trackers, 10240.0, &Additions::ALL), None);
+        assert_eq!(
+            found(&buf, trackers, 10240.0, &without("local_maximum")),
+            Some(bin_period(44.0))
+        );
+    }
+
+    #[test]
+    fn without_narrow_notch_the_papers_notch_hides_a_line() {
+        // 182.9 s lies 6.7 % from the worm's third division (170.7 s);
+        // 2,000 s of data do not resolve the two.
+        let buf = lines(&[(112, 2500.0)]);
+        let trackers = tracked([0.0; 2]);
+        assert_eq!(
+            found(&buf, trackers, 2000.0, &Additions::ALL),
+            Some(bin_period(112.0))
+        );
+        assert_eq!(
+            found(&buf, trackers, 2000.0, &without("narrow_notch")),
+            None
+        );
+    }
+
+    #[test]
+    fn without_drop_faded_a_faded_stage_is_kept() {
+        for (adds, kept) in [(Additions::ALL, false), (without("drop_faded"), true)] {
+            let mut d: Discovery<2> = Discovery::new([None, None]);
+            d.restore(1, true, 0.0, 0);
+            let mut trackers = tracked([0.0, 182.0]);
+            let mut gates = [1.0, 0.0];
+            for _ in 0..FORGET_AFTER_FRAMES {
+                d.step(&mut trackers, &mut gates, &adds);
+            }
+            assert_eq!(d.saved(1), (true, 0.0, FORGET_AFTER_FRAMES));
+            d.step(&mut trackers, &mut gates, &adds);
+            let frames = if kept { FORGET_AFTER_FRAMES + 1 } else { 0 };
+            assert_eq!(d.saved(1), (kept, 0.0, frames));
+        }
+    }
+
+    #[test]
+    fn without_convergence_gate_an_unsettled_worm_lets_the_search_run() {
+        // A line of amplitude ratio 0.5 to the worm's.
+        let buf = lines(&[(112, 2500.0)]);
+        let step_once = |trackers: &mut [PeriodTracker; 2], adds: &Additions| {
+            let mut d: Discovery<2> = Discovery::new([None, None]);
+            scan_scripted(&mut d, trackers, &buf, 10240.0, adds);
+            d.step(trackers, &mut [1.0, 0.0], adds);
+            (d.saved(1).0, d.ratio(1))
+        };
+        let mut unsettled = [PeriodTracker::new(bin_period(40.0)); 2];
+        assert_eq!(step_once(&mut unsettled, &Additions::ALL), (false, 0.0));
+        let off = without("convergence_gate");
+        assert_eq!(
+            step_once(&mut unsettled, &off),
+            (true, UNGATED_RATIO_SMOOTHING * 0.5)
+        );
+        // Settled, the search runs either way; the ratio is smoothed more.
+        let mut settled = tracked([0.0; 2]);
+        assert_eq!(
+            step_once(&mut settled, &Additions::ALL),
+            (true, RATIO_SMOOTHING * 0.5)
+        );
+    }
+
+    #[test]
+    fn without_resolution_guard_an_unresolved_line_is_taken() {
+        // 455 s against the 512 s worm: one beat in 4,096 s.
+        let buf = lines(&[(45, 2500.0)]);
+        let trackers = tracked([0.0; 2]);
+        assert_eq!(found(&buf, trackers, 4096.0, &Additions::ALL), None);
+        assert_eq!(
+            found(&buf, trackers, 4096.0, &without("resolution_guard")),
+            Some(bin_period(45.0))
+        );
+    }
+
+    #[test]
+    fn without_near_harmonic_a_resolved_line_in_a_notch_is_refused() {
+        // 176.6 s, 3.4 % from the worm's third division: two beats in
+        // 10,240 s.
+        let buf = lines(&[(116, 2500.0)]);
+        let trackers = tracked([0.0; 2]);
+        assert_eq!(
+            found(&buf, trackers, 10240.0, &Additions::ALL),
+            Some(bin_period(116.0))
+        );
+        assert_eq!(
+            found(&buf, trackers, 10240.0, &without("near_harmonic")),
+            None
+        );
+    }
+
+    /// Stage 1's period and peak after one scan of `buf`, the stage found
+    /// at 182.9 s (bin 112) with smoothed amplitude ratio `ratio`.
+    fn followed(
+        buf: &[f64; crate::model::spectral::fft::FFT_LEN],
+        ratio: f64,
+        adds: &Additions,
+    ) -> (f64, Option<f64>) {
+        let mut d: Discovery<2> = Discovery::new([None, None]);
+        d.restore(1, true, ratio, 0);
+        let mut trackers = tracked([0.0, bin_period(112.0)]);
+        scan_scripted(&mut d, &mut trackers, buf, 10240.0, adds);
+        (trackers[1].period_s, d.stages[1].peak_period_s)
+    }
+
+    #[test]
+    fn without_octave_move_a_weak_stage_stays_below_its_energy() {
+        // Its octave (365.7 s) has three times its power, too little to be
+        // a line of its own.
+        let buf = lines(&[(112, 50.0), (56, 150.0)]);
+        let (own, octave) = (bin_period(112.0), bin_period(56.0));
+        assert_eq!(followed(&buf, 0.0, &Additions::ALL), (octave, Some(octave)));
+        assert_eq!(
+            followed(&buf, 0.0, &without("octave_move")),
+            (own, Some(own))
+        );
+    }
+
+    #[test]
+    fn without_fundamental_move_a_stage_stays_on_its_harmonic() {
+        // A fully gated stage; its fundamental has 3/4 of its power.
+        let buf = lines(&[(112, 400.0), (56, 300.0)]);
+        let (own, fundamental) = (bin_period(112.0), bin_period(56.0));
+        assert_eq!(
+            followed(&buf, 0.5, &Additions::ALL),
+            (fundamental, Some(fundamental))
+        );
+        assert_eq!(
+            followed(&buf, 0.5, &without("fundamental_move")),
+            (own, Some(own))
+        );
+    }
+
+    #[test]
+    fn without_follow_band_a_stage_takes_the_strongest_line() {
+        // A stronger line at 113.8 s, far from the stage's own.
+        let buf = lines(&[(112, 400.0), (180, 1600.0)]);
+        let own = bin_period(112.0);
+        assert_eq!(followed(&buf, 0.5, &Additions::ALL), (own, Some(own)));
+        assert_eq!(
+            followed(&buf, 0.5, &without("follow_band")),
+            (own, Some(bin_period(180.0)))
+        );
+    }
+
+    #[test]
+    fn without_follow_past_an_ungated_later_stage_notches_a_line() {
+        // Stage 2, ungated, at twice stage 1's period.
+        let buf = lines(&[(112, 400.0)]);
+        let peak = |adds: &Additions| {
+            let mut d: Discovery<3> = Discovery::new([None; 3]);
+            d.restore(1, true, 0.5, 0);
+            d.restore(2, true, 0.0, 0);
+            let mut trackers = tracked([0.0, bin_period(112.0), bin_period(56.0)]);
+            scan_scripted(&mut d, &mut trackers, &buf, 10240.0, adds);
+            d.stages[1].peak_period_s
+        };
+        assert_eq!(peak(&Additions::ALL), Some(bin_period(112.0)));
+        assert_eq!(peak(&without("follow_past")), None);
     }
 
     #[test]

@@ -110,6 +110,13 @@ impl<'a, S: Scalar> Spectrum<'a, S> {
         Some(Self { buf, low_bin })
     }
 
+    /// A spectrum of the given power per bin, every bin from 1 meaningful:
+    /// scripted input for the tests of what reads it.
+    #[cfg(test)]
+    pub fn scripted(buf: &'a [S; FFT_LEN]) -> Self {
+        Self { buf, low_bin: 1 }
+    }
+
     /// Power of bin `k` (0 outside the meaningful range).
     pub fn power(&self, k: usize) -> f64 {
         if k >= self.low_bin && k <= NYQUIST_BIN {
