@@ -292,6 +292,7 @@ fn each_subcommand_help_lists_its_options() {
                 "--exposure <S>",
                 "--min-move <PX>",
                 "--calibration <K>",
+                "--without <NAME>",
             ],
         ),
         (
@@ -342,7 +343,7 @@ fn an_ablation_of_an_unknown_addition_is_a_usage_error() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     let err = stderr(&o);
     assert!(
-        err.contains("\"frobnicate\"") && err.contains("measured_subset"),
+        err.contains("'frobnicate' for '--only <NAME>'") && err.contains("measured_subset"),
         "{err}"
     );
     assert!(stdout(&o).is_empty());

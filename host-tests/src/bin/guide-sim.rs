@@ -8,6 +8,7 @@
 //! guide-sim st4 [--case ID] [--cases FILE] [--noise PX] [--csv]
 //!               [--aggressiveness A] [--exposure S] [--min-move PX] [--calibration K]
 //!               [--drift A] [--walk W] [--bump B] [--least-pulse-share F]
+//!               [--without NAME]...
 //! guide-sim nights [--case ID] [--cases FILE] [--noise PX] [--park] [--csv]
 //! guide-sim night [--case ID] [--cases FILE] [--noise PX] [--seed N] [--csv]
 //!                 [--phd2-log FILE] [--truth FILE]
@@ -199,7 +200,7 @@ struct AblateArgs {
           value_parser = clap::value_parser!(u64).range(2..=100_000))]
     count: u64,
     /// Only this addition (repeatable); all of them by default
-    #[arg(long, value_name = "NAME")]
+    #[arg(long, value_name = "NAME", value_parser = addition_name)]
     only: Vec<String>,
 }
 
@@ -321,6 +322,32 @@ struct St4Args {
     /// The firmware's least share of a guide pulse (1: every pulse in full)
     #[arg(long, value_name = "F", value_parser = in_range(0.1, 1.0), default_value = "0.2")]
     least_pulse_share: f64,
+    /// Switch off this addition around the paper's model (repeatable; `ablate --help`)
+    #[arg(long, value_name = "NAME", value_parser = addition_name)]
+    without: Vec<String>,
+}
+
+/// A parser of an addition's name (`mkgp_mount::model::additions`).
+fn addition_name(s: &str) -> Result<String, String> {
+    use mkgp_mount::model::additions::Additions;
+    if Additions::NAMES.contains(&s) {
+        Ok(s.to_string())
+    } else {
+        Err(format!(
+            "no addition is called that (they are: {})",
+            Additions::NAMES.join(", ")
+        ))
+    }
+}
+
+/// Every addition but `without`.
+fn additions_without(without: &[String]) -> mkgp_mount::model::additions::Additions {
+    let mut a = mkgp_mount::model::additions::Additions::ALL;
+    for name in without {
+        // The names were checked by `addition_name`.
+        let _ = a.set(name, false);
+    }
+    a
 }
 
 /// A parser of numbers in [lo, hi].
@@ -782,7 +809,7 @@ fn cmd_st4(args: St4Args) -> ExitCode {
             bump_arcsec: args.bump,
         },
         least_pulse_share: args.least_pulse_share as f32,
-        ..st4_sim::Setup::default()
+        additions: additions_without(&args.without),
     };
     let rows = st4_sim::table_with(&cases, &levels, setup);
     if csv {
@@ -1111,16 +1138,6 @@ fn cmd_ablate(AblateArgs { seed, count, only }: AblateArgs) -> ExitCode {
         .copied()
         .filter(|n| only.is_empty() || only.iter().any(|o| o == n))
         .collect();
-    if let Some(unknown) = only
-        .iter()
-        .find(|o| !Additions::NAMES.contains(&o.as_str()))
-    {
-        eprintln!(
-            "guide-sim ablate: no addition is called {unknown:?} (they are: {})",
-            Additions::NAMES.join(", ")
-        );
-        return ExitCode::from(2);
-    }
     let Some((_, cases)) = load_cases(None) else {
         return ExitCode::FAILURE;
     };
