@@ -103,6 +103,12 @@ pub struct Additions {
     /// (`GuiderConfig::prediction_at_gear_time`, `Grid::lag_s`). Off: at
     /// the grid's time, the reference's timing.
     pub grid_lag: bool,
+    /// The guider: a frame off the clock by more than 600 s is held, and
+    /// the next frame that continues it moves the clock there (a paused
+    /// guider, a reset clock; `Guider::accept_time`). Off: such a frame is
+    /// refused like any other off the clock, and a clock that jumped is
+    /// refused until it comes back.
+    pub clock_hold: bool,
 }
 
 /// A name [`Additions::set`] does not know.
@@ -133,10 +139,11 @@ impl Additions {
         trust_shadows: true,
         law_choice: true,
         grid_lag: true,
+        clock_hold: true,
     };
 
     /// Each addition's name, as [`set`](Self::set) takes it.
-    pub const NAMES: [&'static str; 21] = [
+    pub const NAMES: [&'static str; 22] = [
         "bump",
         "pulse_weight",
         "pulse_damping",
@@ -158,6 +165,7 @@ impl Additions {
         "trust_shadows",
         "law_choice",
         "grid_lag",
+        "clock_hold",
     ];
 
     /// Switches the addition called `name` on or off.
@@ -184,6 +192,7 @@ impl Additions {
             "trust_shadows" => &mut self.trust_shadows,
             "law_choice" => &mut self.law_choice,
             "grid_lag" => &mut self.grid_lag,
+            "clock_hold" => &mut self.clock_hold,
             _ => return Err(UnknownAddition),
         };
         *switch = on;

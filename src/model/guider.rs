@@ -647,7 +647,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             self.move_clock(held);
             return true;
         }
-        if (time_s - self.last_time).abs() > MAX_FRAME_GAP_S {
+        if self.config.additions.clock_hold && (time_s - self.last_time).abs() > MAX_FRAME_GAP_S {
             self.held_time = Some(time_s);
         }
         self.faults.bad_time = self.faults.bad_time.saturating_add(1);
@@ -929,6 +929,26 @@ mod tests {
         assert!(reference.iter().any(|&f| f != 0.0));
         assert_ne!(run(true, Additions::ALL), reference);
         assert_eq!(run(true, off), reference);
+    }
+
+    #[test]
+    fn without_clock_hold_a_clock_that_jumped_is_refused() {
+        // Ten frames, then the clock jumps 5,000 s ahead and goes on there.
+        for (hold, refused) in [(true, 1), (false, 10)] {
+            let mut additions = Additions::ALL;
+            additions.clock_hold = hold;
+            let mut g: Guider<f64, 1> = Guider::new(GuiderConfig {
+                additions,
+                ..GuiderConfig::default()
+            });
+            for t in (0..10).map(|k| 2.0 * k as f64) {
+                g.observe(t, Some(gear(t)), 0.0, 10.0, 2.0);
+            }
+            for t in (0..10).map(|k| 5000.0 + 2.0 * k as f64) {
+                g.observe(t, Some(gear(t)), 0.0, 10.0, 2.0);
+            }
+            assert_eq!(g.faults().bad_time, refused, "{hold}");
+        }
     }
 
     #[test]
