@@ -88,6 +88,27 @@ pub struct Additions {
     /// does not notch the second's line). Off: every found stage's period
     /// is notched and guarded, as for a new stage.
     pub follow_past: bool,
+    /// The guider: with more than one stage, the reference blend is
+    /// weighted by the trust the model earns in two shadow loops, the
+    /// model's against the hysteresis alone (`model::guider::trust`). Off:
+    /// the reference blend as it is (INDIGO's).
+    pub trust_shadows: bool,
+    /// The guider: with more than one stage, two more shadows choose the
+    /// reactive law, proportional control in place of the hysteresis term
+    /// while it is measured better (`model::guider::trust`). Off: the
+    /// reference's hysteresis term always.
+    pub law_choice: bool,
+    /// The guider: the mount's feed-forward reads the model the grid's lag
+    /// later, where the gear error's own time lies
+    /// (`GuiderConfig::prediction_at_gear_time`, `Grid::lag_s`). Off: at
+    /// the grid's time, the reference's timing.
+    pub grid_lag: bool,
+    /// The guider: a frame off the clock by more than 600 s is held, and
+    /// the next frame that continues it moves the clock there (a paused
+    /// guider, a reset clock; `Guider::accept_time`). Off: such a frame is
+    /// refused like any other off the clock, and a clock that jumped is
+    /// refused until it comes back.
+    pub clock_hold: bool,
 }
 
 /// A name [`Additions::set`] does not know.
@@ -115,10 +136,14 @@ impl Additions {
         fundamental_move: true,
         follow_band: true,
         follow_past: true,
+        trust_shadows: true,
+        law_choice: true,
+        grid_lag: true,
+        clock_hold: true,
     };
 
     /// Each addition's name, as [`set`](Self::set) takes it.
-    pub const NAMES: [&'static str; 18] = [
+    pub const NAMES: [&'static str; 22] = [
         "bump",
         "pulse_weight",
         "pulse_damping",
@@ -137,6 +162,10 @@ impl Additions {
         "fundamental_move",
         "follow_band",
         "follow_past",
+        "trust_shadows",
+        "law_choice",
+        "grid_lag",
+        "clock_hold",
     ];
 
     /// Switches the addition called `name` on or off.
@@ -160,6 +189,10 @@ impl Additions {
             "fundamental_move" => &mut self.fundamental_move,
             "follow_band" => &mut self.follow_band,
             "follow_past" => &mut self.follow_past,
+            "trust_shadows" => &mut self.trust_shadows,
+            "law_choice" => &mut self.law_choice,
+            "grid_lag" => &mut self.grid_lag,
+            "clock_hold" => &mut self.clock_hold,
             _ => return Err(UnknownAddition),
         };
         *switch = on;

@@ -373,6 +373,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
                 gear,
                 &law.to_f64(),
                 prediction.map(|p| (p.to_f64(), self.blend)),
+                &self.config.additions,
             );
             self.blend *= weight;
         }
@@ -586,7 +587,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             min_move: self.config.min_move,
             // HYSTERESIS unless the shadows measured the proportional law
             // better (N > 1 only: the single-kernel guider never asks them).
-            hysteresis: self.trust.hysteresis(),
+            hysteresis: self.trust.hysteresis(&self.config.additions),
         }
     }
 
@@ -646,7 +647,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             self.move_clock(held);
             return true;
         }
-        if (time_s - self.last_time).abs() > MAX_FRAME_GAP_S {
+        if self.config.additions.clock_hold && (time_s - self.last_time).abs() > MAX_FRAME_GAP_S {
             self.held_time = Some(time_s);
         }
         self.faults.bad_time = self.faults.bad_time.saturating_add(1);
@@ -812,7 +813,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         let Some(origin) = self.grid.origin() else {
             return S::ZERO;
         };
-        let lag = if self.config.prediction_at_gear_time {
+        let lag = if self.config.prediction_at_gear_time && self.config.additions.grid_lag {
             self.grid.lag_s()
         } else {
             0.0
@@ -903,6 +904,51 @@ mod tests {
         // Measured: 0.016 px against a true change of 0.275 px RMS (5.7 %).
         assert!(rms_err < 0.08 * rms_true, "{rms_err} vs {rms_true}");
         assert!((g.period_s(0) - 432.0).abs() < 1.0, "{}", g.period_s(0));
+    }
+
+    #[test]
+    fn without_grid_lag_the_feed_forward_keeps_the_grids_time() {
+        // The mount's feed-forward on 2 s frames, where the grid's lag is
+        // 1.3 s: with the addition read that much later, without it at the
+        // reference's timing, frame for frame.
+        let run = |prediction_at_gear_time: bool, additions: Additions| {
+            let mut g: Guider<f64, 1> = Guider::new(GuiderConfig {
+                prediction_at_gear_time,
+                additions,
+                ..GuiderConfig::default()
+            });
+            let ff: [f64; 1500] = core::array::from_fn(|k| {
+                let t = 2.0 * k as f64;
+                g.observe(t, Some(gear(t)), 0.0, 10.0, 2.0)
+            });
+            ff
+        };
+        let mut off = Additions::ALL;
+        off.set("grid_lag", false).unwrap();
+        let reference = run(false, Additions::ALL);
+        assert!(reference.iter().any(|&f| f != 0.0));
+        assert_ne!(run(true, Additions::ALL), reference);
+        assert_eq!(run(true, off), reference);
+    }
+
+    #[test]
+    fn without_clock_hold_a_clock_that_jumped_is_refused() {
+        // Ten frames, then the clock jumps 5,000 s ahead and goes on there.
+        for (hold, refused) in [(true, 1), (false, 10)] {
+            let mut additions = Additions::ALL;
+            additions.clock_hold = hold;
+            let mut g: Guider<f64, 1> = Guider::new(GuiderConfig {
+                additions,
+                ..GuiderConfig::default()
+            });
+            for t in (0..10).map(|k| 2.0 * k as f64) {
+                g.observe(t, Some(gear(t)), 0.0, 10.0, 2.0);
+            }
+            for t in (0..10).map(|k| 5000.0 + 2.0 * k as f64) {
+                g.observe(t, Some(gear(t)), 0.0, 10.0, 2.0);
+            }
+            assert_eq!(g.faults().bad_time, refused, "{hold}");
+        }
     }
 
     #[test]

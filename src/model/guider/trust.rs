@@ -28,6 +28,7 @@
 
 use super::control_law::Law;
 use super::HYSTERESIS;
+use crate::model::additions::Additions;
 
 /// Frames a mean square averages over (about 7 minutes at 2 s frames; a
 /// worm period or more of a modest worm, so that its slopes both ways count).
@@ -121,8 +122,25 @@ impl Trust {
     /// A frame with a measurement: `gear` is the reconstructed gear error
     /// (the guider's controls so far plus its measurement), `prediction`
     /// the model's prediction and the reference blend, if the model was
-    /// consulted. Returns the weight for this frame's control.
-    pub fn measured(&mut self, gear: f64, law: &Law<f64>, prediction: Option<(f64, f64)>) -> f64 {
+    /// consulted. Returns the weight for this frame's control: 1 without
+    /// the addition `trust_shadows` (the shadows still run, for the law).
+    pub fn measured(
+        &mut self,
+        gear: f64,
+        law: &Law<f64>,
+        prediction: Option<(f64, f64)>,
+        adds: &Additions,
+    ) -> f64 {
+        let weight = self.score(gear, law, prediction);
+        if adds.trust_shadows {
+            weight
+        } else {
+            1.0
+        }
+    }
+
+    /// Run the shadows one frame and move the weight; returns it.
+    fn score(&mut self, gear: f64, law: &Law<f64>, prediction: Option<(f64, f64)>) -> f64 {
         let reactive = self.reactive.step(gear, law, None);
         let model = self.model.step(gear, law, prediction);
         let hysteretic = Law {
@@ -187,9 +205,10 @@ impl Trust {
     }
 
     /// Weight of the older control in the guider's hysteresis term: the
-    /// reference's, or 0 while proportional control is measured better.
-    pub fn hysteresis(&self) -> f64 {
-        if self.use_proportional {
+    /// reference's, or 0 while proportional control is measured better
+    /// (with the addition `law_choice`).
+    pub fn hysteresis(&self, adds: &Additions) -> f64 {
+        if self.use_proportional && adds.law_choice {
             0.0
         } else {
             HYSTERESIS
@@ -208,6 +227,55 @@ impl Trust {
         ] {
             s.applied = applied;
             s.controls = controls;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const LAW: Law<f64> = Law {
+        control_gain: 0.6,
+        prediction_gain: 0.5,
+        min_move: 0.0,
+        hysteresis: HYSTERESIS,
+    };
+
+    fn without(name: &str) -> Additions {
+        let mut adds = Additions::ALL;
+        adds.set(name, false).unwrap();
+        adds
+    }
+
+    #[test]
+    fn without_trust_shadows_a_worse_model_keeps_its_weight() {
+        // No gear error, and a prediction that pushes 2 px every frame: the
+        // model's shadow measures worse than the reactive one from the
+        // first scored frame; the weight moves after MIN_SCORED of them.
+        for (adds, last) in [
+            (Additions::ALL, 1.0 - FALL_PER_FRAME),
+            (without("trust_shadows"), 1.0),
+        ] {
+            let mut trust = Trust::new();
+            let weights: [f64; MIN_SCORED as usize] =
+                core::array::from_fn(|_| trust.measured(0.0, &LAW, Some((2.0, 1.0)), &adds));
+            assert!(weights[..weights.len() - 1].iter().all(|&w| w == 1.0));
+            assert_eq!(weights[weights.len() - 1], last);
+        }
+    }
+
+    #[test]
+    fn without_law_choice_the_hysteresis_term_stays() {
+        // A steady drift of 0.5 px a frame: the hysteresis term, a tenth
+        // from the control two frames back, lags it and measures worse
+        // than proportional control (mean squares 0.75 and 0.69 px²).
+        for (adds, hysteresis) in [(Additions::ALL, 0.0), (without("law_choice"), HYSTERESIS)] {
+            let mut trust = Trust::new();
+            for k in 0..LAW_MIN_SCORED as usize {
+                trust.measured(0.5 * k as f64, &LAW, None, &adds);
+            }
+            assert_eq!(trust.hysteresis(&adds), hysteresis);
         }
     }
 }
