@@ -3,8 +3,8 @@
 //! PHD2 logs run with every addition on, then with each one switched off
 //! in turn (`mkgp_mount::model::additions`).
 //!
-//! An addition is measured in the loop it belongs to: the learner's and
-//! the loop's fast part's ([`FIRMWARE_ADDITIONS`]) in the firmware's (as
+//! An addition is measured in the loop it belongs to: the learner's, the
+//! loop's fast part's and `grid_lag` ([`FIRMWARE_ADDITIONS`]) in the firmware's (as
 //! `guide-sim st4`: fw MKGP over the guider alone), the model's in the
 //! model's (as `guide-sim table`: MKGP over the reactive guider). The
 //! baselines do not run the model, so they run once.
@@ -37,9 +37,10 @@ use crate::table::{self, Column};
 use mkgp_mount::model::additions::Additions;
 use rayon::prelude::*;
 
-/// The additions the firmware's loop measures: the learner's, and the
-/// loop's fast part's. The rest are the model's.
-pub const FIRMWARE_ADDITIONS: [&str; 7] = [
+/// The additions the firmware's loop measures: the learner's, the loop's
+/// fast part's, and the model's one that only the learner reads (the
+/// feed-forward at the gear's time). The rest are the model's.
+pub const FIRMWARE_ADDITIONS: [&str; 8] = [
     "bump",
     "pulse_weight",
     "pulse_damping",
@@ -47,6 +48,7 @@ pub const FIRMWARE_ADDITIONS: [&str; 7] = [
     "feed_forward_horizon",
     "saved_share",
     "calibration_watch",
+    "grid_lag",
 ];
 
 /// Redraws of the mounts for the spread.
