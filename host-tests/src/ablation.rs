@@ -43,7 +43,7 @@ use rayon::prelude::*;
 pub const FIRMWARE_ADDITIONS: [&str; 8] = [
     "bump",
     "pulse_weight",
-    "pulse_damping",
+    "earned_share",
     "trusted_gate",
     "feed_forward_horizon",
     "saved_share",

@@ -44,7 +44,7 @@ fn goals_with_the_gear_moved_while_off() {
     // goal, 1.15 x settled on every row, is the bar; measured 0.80-1.14
     // over three night-2 phases (C6 noise-free the worst: its 155 s
     // stage's phase takes 25-55 s of new data to show), with the pulse
-    // damping (its share saved with the model) at 1 px.
+    // earned pulse share (saved with the model) at 1 px.
     check(&rows, "index > 1.15 x settled", |r| {
         r.restored_index_first30 <= 1.15 * r.settled
     });
@@ -57,7 +57,7 @@ fn goals_with_the_gear_parked() {
         r.restored_first30 <= r.cold_first30 && r.restored_index_first30 <= r.cold_first30
     });
     // Every phase carries over: the goal, within 1.15 x settled on every
-    // row (measured 0.72-1.06; 1 px with the damping's share saved with
+    // row (measured 0.72-1.06; 1 px with the earned share saved with
     // the model).
     check(&rows, "park > 1.15 x settled", |r| {
         r.restored_index_first30 <= 1.15 * r.settled

@@ -32,7 +32,7 @@ fn assert_rates_sane(rig: &Rig) {
 /// Every case and noise level against the issue's bars. (C5 with 1 px
 /// measured 0.837 x guider alone until a found stage could move to its
 /// octave: seed 2 found the 77.5 s harmonic first: 0.798, and 0.633 with
-/// the pulse damping.)
+/// the earned pulse share.)
 #[test]
 fn goals() {
     let cases = cases::load(&cases_file()).unwrap_or_else(|e| panic!("{e}"));
@@ -61,10 +61,10 @@ fn goals() {
             bar = Some(0.6);
         }
         // Issue 10, section 5 (half the gap to a perfect feed-forward behind
-        // full pulses): C7 met by the pulse damping (0.634, from 0.67); C6
+        // full pulses): C7 met by the earned pulse share (0.634, from 0.67); C6
         // (goal 0.685) by its stage moving up to the 155 s fundamental
         // (0.573, from 0.730 with the stage on its 77.5 s harmonic,
-        // docs/model.md). C1-C4 with 1 px: 0.48-0.66 with damping,
+        // docs/model.md). C1-C4 with 1 px: 0.48-0.66 with the earned share,
         // 0.87-0.93 without.
         if r.noise_px > 0.0 {
             match r.case.as_str() {
@@ -337,7 +337,7 @@ fn cli_csv() {
 
 /// A 1 px MKGP rig on `name` (seed 1) with the firmware's least pulse
 /// share `least`, guided for `secs`.
-fn damped_rig(name: &str, least: f32, secs: u64) -> Rig {
+fn shared_rig(name: &str, least: f32, secs: u64) -> Rig {
     let c = case(name);
     let config = MountConfig {
         least_pulse_share: least,
@@ -373,9 +373,9 @@ fn observation_error(r: &Rig) -> (f64, f64) {
 /// the weight of a pulse learned. Switched off (`least_pulse_share` 1),
 /// every pulse is carried out in full.
 #[test]
-fn damping_is_earned_and_learning_stays_right() {
-    let on = damped_rig("C1", 0.2, 3600);
-    let off = damped_rig("C1", 1.0, 3600);
+fn the_pulse_share_is_earned_and_learning_stays_right() {
+    let on = shared_rig("C1", 0.2, 3600);
+    let off = shared_rig("C1", 1.0, 3600);
     assert!(on.pulse_share() < 0.5, "{}", on.pulse_share());
     assert_eq!(on.pulse_weight(), 1.0);
     assert_eq!(on.learner_counters().bumps, 0);
@@ -394,12 +394,12 @@ fn damping_is_earned_and_learning_stays_right() {
 }
 
 /// A PHD2 calibration (RA+ steps of 750 ms, RA- back, a 2.5 s step)
-/// through the loop while the firmware damps: each pulse moves the mount
+/// through the loop while the firmware shares its pulses: each pulse moves the mount
 /// by exactly what it asks (the steps beyond sidereal and feed-forward,
 /// within two steps), and a Dec pulse moves Dec by its whole length.
 #[test]
-fn a_calibration_through_the_damped_loop_moves_the_mount_as_asked() {
-    let mut r = damped_rig("C1", 0.2, 3600);
+fn a_calibration_through_the_shared_loop_moves_the_mount_as_asked() {
+    let mut r = shared_rig("C1", 0.2, 3600);
     assert!(r.pulse_share() < 1.0);
     r.guider_on = false;
     // The guider's last pulse is over.
@@ -527,9 +527,9 @@ fn a_bump_is_taken_out_of_the_observations() {
 /// Issue 10, section 4: behind a guider more aggressive than the firmware
 /// assumes (aggressiveness 1.0, 1 s exposures, a calibration of 0.75), fw
 /// MKGP is at most 0.8 of the guider alone on C5-C8 with 1 px (0.60-0.72
-/// measured with the pulse damping; 0.71-0.94 without it).
+/// measured with the earned pulse share; 0.71-0.94 without it).
 #[test]
-fn a_more_aggressive_guider_is_damped_to_the_goal() {
+fn a_more_aggressive_guider_is_held_to_the_goal() {
     let cases: Vec<Case> = ["C5", "C6", "C7", "C8"].into_iter().map(case).collect();
     let default = GuiderSettings::default();
     let guiders = [
@@ -565,7 +565,7 @@ fn a_more_aggressive_guider_is_damped_to_the_goal() {
 
 /// Issue 10, section 4: a guider unstable on its own (aggressiveness 1.0
 /// with a calibration of 0.5: it corrects twice what it measures). At 2 s
-/// exposures the damping holds the loop behind the trusted model (C5-C8 at
+/// exposures the earned share holds the loop behind the trusted model (C5-C8 at
 /// 1 px: 0.82-0.89 arcsec measured, the guider alone 505-1,202). At 8 s
 /// the guider alone holds the star, and the firmware does better once the
 /// swing has lowered its pulse weight (C5-C8 at 1 px: 0.44-0.61 x the

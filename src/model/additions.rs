@@ -20,9 +20,9 @@ pub struct Additions {
     /// (`mount::guiding::pulse_weight`). Off: every pulse in full.
     pub pulse_weight: bool,
     /// The learner: the share of each RA pulse the firmware carries out,
-    /// earned from the pulses' correlation (`mount::guiding::damping`).
+    /// earned from the pulses' correlation (`mount::guiding::earned_share`).
     /// Off: every pulse in full.
-    pub pulse_damping: bool,
+    pub earned_share: bool,
     /// The learner: the share is earned only while the model is trusted in
     /// full. Off: from the first measured pulses.
     pub trusted_gate: bool,
@@ -120,7 +120,7 @@ impl Additions {
     pub const ALL: Additions = Additions {
         bump: true,
         pulse_weight: true,
-        pulse_damping: true,
+        earned_share: true,
         trusted_gate: true,
         feed_forward_horizon: true,
         saved_share: true,
@@ -146,7 +146,7 @@ impl Additions {
     pub const NAMES: [&'static str; 22] = [
         "bump",
         "pulse_weight",
-        "pulse_damping",
+        "earned_share",
         "trusted_gate",
         "feed_forward_horizon",
         "saved_share",
@@ -173,7 +173,7 @@ impl Additions {
         let switch = match name {
             "bump" => &mut self.bump,
             "pulse_weight" => &mut self.pulse_weight,
-            "pulse_damping" => &mut self.pulse_damping,
+            "earned_share" => &mut self.earned_share,
             "trusted_gate" => &mut self.trusted_gate,
             "feed_forward_horizon" => &mut self.feed_forward_horizon,
             "saved_share" => &mut self.saved_share,

@@ -146,7 +146,7 @@ pub enum Field {
     /// The cells' trend: steeper than the gear can change.
     Trend,
     /// The pulse share the learner saves with the model
-    /// (`mount::guiding::damping::SavedShare`).
+    /// (`mount::guiding::earned_share::SavedShare`).
     PulseShare,
 }
 

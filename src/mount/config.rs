@@ -72,7 +72,7 @@ pub struct MountConfig {
     pub silence_frames: u32,
     /// The least share of an RA guide pulse the firmware carries out once
     /// it has measured that the pulses mostly react to noise (behind a
-    /// trusted model; `crate::mount::guiding::damping`), in [0.1, 1]
+    /// trusted model; `crate::mount::guiding::earned_share`), in [0.1, 1]
     /// (default 0.2). 1 carries out every pulse in full.
     pub least_pulse_share: f32,
 }

@@ -77,7 +77,7 @@ impl FeedForward {
 }
 
 /// The share of an RA guide pulse the firmware carries out, as the learner
-/// measured it (`crate::mount::guiding::damping`): a pulse is carried out
+/// measured it (`crate::mount::guiding::earned_share`): a pulse is carried out
 /// at `fraction` of the guide rate up to `up_to_arcsec` of correction
 /// asked; a longer one is carried out in full, the part held back made up
 /// at once.

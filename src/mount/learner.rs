@@ -19,7 +19,7 @@ use crate::model::snapshot::{
 use crate::mount::config::Mount;
 use crate::mount::frame::{FeedForward, Frame, FrameKind, PulseShare};
 use crate::mount::guiding::bump::{self, Bump};
-use crate::mount::guiding::damping::{Damping, SavedShare, SAVED_LEN};
+use crate::mount::guiding::earned_share::{EarnedShare, SavedShare, SAVED_LEN};
 use crate::mount::guiding::pulse_weight::PulseWeight;
 
 /// Periodic stages of the firmware's model (the worm and two more), and of
@@ -55,7 +55,7 @@ pub const WORM_PERIOD_CHANGE: f32 = 0.01;
 const _: () = assert!(FIRMWARE_STAGES <= SNAPSHOT_MAX_STAGES);
 
 /// The model's blend weight from which its feed-forward counts as trusted
-/// in full, and pulse damping may be earned.
+/// in full, and the pulse share may be earned.
 const TRUSTED_BLEND: f64 = 0.9;
 
 crate::counters! {
@@ -86,7 +86,7 @@ pub struct Learner<const N: usize> {
     cadence_s: f32,
     last_gear_s: Option<f64>,
     settling: u8,
-    damping: Damping,
+    share: EarnedShare,
     pulse_weight: PulseWeight,
     bump: Bump,
     counters: LearnerCounters,
@@ -135,7 +135,7 @@ impl<const N: usize> Learner<N> {
             cadence_s = mount.config().guide_cadence_s,
             last_gear_s = None,
             settling = 0,
-            damping = Damping::new(mount.config().least_pulse_share),
+            share = EarnedShare::new(mount.config().least_pulse_share),
             pulse_weight = PulseWeight::FULL,
             bump = Bump::NONE,
             counters = LearnerCounters::default(),
@@ -168,14 +168,14 @@ impl<const N: usize> Learner<N> {
         self.guider.reset();
         self.last_gear_s = None;
         self.settling = 0;
-        self.damping.reset();
+        self.share.reset();
         self.pulse_weight = PulseWeight::FULL;
         self.bump = Bump::NONE;
     }
 
     /// The share of the RA guide pulses carried out now (1: in full).
     pub fn pulse_share(&self) -> f32 {
-        self.damping.fraction()
+        self.share.fraction()
     }
 
     /// The part of a guide pulse the model learns as gear error (1: all).
@@ -202,7 +202,7 @@ impl<const N: usize> Learner<N> {
         })?;
         let (worm, share) = head.split_at_mut(WORM_LEN);
         worm.copy_from_slice(&self.configured_worm_s().to_le_bytes());
-        let saved = self.damping.saved().with_weight(self.pulse_weight.weight());
+        let saved = self.share.saved().with_weight(self.pulse_weight.weight());
         share.copy_from_slice(&saved.to_bytes());
         Ok(WORM_LEN + SAVED_LEN + n)
     }
@@ -242,10 +242,10 @@ impl<const N: usize> Learner<N> {
         self.last_gear_s = None;
         self.settling = 0;
         if self.guider.config().additions.saved_share {
-            self.damping.restore(share);
+            self.share.restore(share);
             self.pulse_weight = PulseWeight::restored(share.weight());
         } else {
-            self.damping.reset();
+            self.share.reset();
             self.pulse_weight = PulseWeight::FULL;
         }
         Ok(())
@@ -329,7 +329,7 @@ impl<const N: usize> Learner<N> {
             _ => None,
         };
         // An observation the model refuses (its measured part not finite or
-        // beyond `max_input`) is no guide error for the bump, the damping
+        // beyond `max_input`) is no guide error for the bump, the earned share
         // or the pulse weight either: a step measured from it would lower
         // every later observation by as much.
         let sane = observed.filter(|o| self.guider.accepts_input(o - frame.applied_arcsec as f64));
@@ -341,7 +341,7 @@ impl<const N: usize> Learner<N> {
             && sane.is_some()
             && self.settling == 0
             && self
-                .damping
+                .share
                 .bound()
                 .is_some_and(|b| frame.pulse_arcsec.abs() > bump::BOUNDS * b);
         if stepped {
@@ -379,15 +379,15 @@ impl<const N: usize> Learner<N> {
         // (dithers, settling, silence) are carried out in full.
         let pulse = sane.filter(|_| !settling).map(|_| frame.pulse_arcsec);
         let earned = self
-            .damping
+            .share
             .frame(pulse, self.trusted() || !adds.trusted_gate);
-        let pulse_share = if adds.pulse_damping {
+        let pulse_share = if adds.earned_share {
             earned
         } else {
             PulseShare::FULL
         };
         if pulse.is_some() && adds.pulse_weight {
-            self.pulse_weight.frame(self.damping.swing());
+            self.pulse_weight.frame(self.share.swing());
         }
         // In effect for three frames: of the cadence, or of the guider's
         // own spacing where longer, up to the longest step the model
@@ -556,11 +556,11 @@ mod tests {
         let mut off = without("trusted_gate");
         alternating(&mut off, 300, false);
         assert!(off.pulse_share() < 0.5, "{}", off.pulse_share());
-        // And without damping, nothing is earned even so.
+        // And without the earned share, nothing is earned even so.
         let m = MountConfig::default().validate().unwrap();
         let mut config = Learner::<1>::default_config(&m);
         config.additions.trusted_gate = false;
-        config.additions.pulse_damping = false;
+        config.additions.earned_share = false;
         let mut neither = std::boxed::Box::new(Learner::<1>::with_config(&m, config));
         for k in 0..300 {
             let ff = neither.learn(measured(k, 0.0, if k % 2 == 0 { 0.3 } else { -0.3 }));

@@ -18,7 +18,7 @@
 //! stages of 900-1,400 s and its feed-forward off by up to 0.7 arcsec/s
 //! for the minute after).
 
-/// A pulse beyond this many times the damping's bound (itself 4 RMS of
+/// A pulse beyond this many times the earned share's bound (itself 4 RMS of
 /// the recent pulses) is a step of the star.
 pub const BOUNDS: f32 = 2.0;
 /// Frames the mean before a step averages over (a running mean).

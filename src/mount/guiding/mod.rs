@@ -12,7 +12,7 @@
 //!
 //! Its parts: `applied` (the applied correction C and the gear time),
 //! `framer` (the frames and their queue), `feed_forward` (the
-//! feed-forward in effect), and for the learner `damping` (the share of a
+//! feed-forward in effect), and for the learner `earned_share` (the share of a
 //! pulse carried out), `pulse_weight` (the part of a pulse learned) and
 //! `bump` (a step of the star taken out of the observations).
 //!
@@ -112,7 +112,7 @@
 mod applied;
 pub mod bump;
 pub mod calibration;
-pub mod damping;
+pub mod earned_share;
 mod feed_forward;
 mod framer;
 pub mod pulse_weight;
@@ -171,7 +171,7 @@ crate::counters! {
         time_backwards,
         /// Pulse ends for an axis without a pulse (ignored).
         stray_ends,
-        /// RA pulses carried out in part (`damping`), and of those that
+        /// RA pulses carried out in part (`earned_share`), and of those that
         /// started so, the ones that turned out long and were made up in full.
         ra_pulses_held_back,
         ra_pulses_made_up,
@@ -398,7 +398,7 @@ impl Guiding {
         }
     }
 
-    /// The share of an RA pulse starting at `at_us`: damped only while the
+    /// The share of an RA pulse starting at `at_us`: shared only while the
     /// learner's feed-forward is in full effect, the port adds no motion
     /// and the guider does not calibrate (it measures its pulses' moves).
     fn share_for(&self, direction: Direction, at_us: u64) -> Option<SharedPulse> {

@@ -14,7 +14,7 @@
 //! Such a swing makes pulses two frames apart anti-correlated. A loop's
 //! reaction to noise never does so by much: for a loop of gain G on white
 //! noise that correlation is `(1 - G)` times the neighbours' one, `-G/2`,
-//! so never below -1/8 on average (the damping's 64-frame running means
+//! so never below -1/8 on average (the earned share's 64-frame running means
 //! spread it: -0.34 at the least over 3,000 frames of noise). So while the
 //! pulses two frames apart are correlated below [`SWING`], the model takes
 //! a smaller part of each pulse, down to [`LEAST`]. The weight does not
@@ -25,7 +25,7 @@
 //! learn of it anyway (its shortest stage is 20 s).
 //!
 //! The same evidence widens the pulses the firmware shares: a pulse beyond
-//! the damping's bound is otherwise carried out in full, and from a guider
+//! the earned share's bound is otherwise carried out in full, and from a guider
 //! that overcorrects that is its own swing starting, doubled (at 2 s
 //! exposures, a single noisy measurement set off a swing that lasted the
 //! rest of the night). The bound grows as the weight falls: a guider that

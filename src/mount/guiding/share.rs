@@ -1,13 +1,13 @@
 //! Carrying out a share of an RA guide pulse, and making up what was held
 //! back once the pulse turns out longer than a reaction to noise.
 //!
-//! A pulse runs at `fraction` of the guide rate for its first `damped_us`
+//! A pulse runs at `fraction` of the guide rate for its first `held_us`
 //! (`up_to_arcsec` of correction). If it lasts longer it is no reaction to
 //! noise (a bump, a calibration step, a dither): from then on it runs at
 //! `1 + make_up` times the guide rate until what was held back is made
 //! up, then at the guide rate; if it ends first, the guide rate goes on
 //! after its end until it is made up. Such a pulse moves the mount exactly
-//! as far as it asked. A pulse no longer than `damped_us` moves it
+//! as far as it asked. A pulse no longer than `held_us` moves it
 //! `fraction` of that. The time of each change is a deadline of the loop
 //! ([`SharedPulse::next_change_us`]), so the steps come out exact.
 
@@ -19,7 +19,7 @@ pub(super) struct SharedPulse {
     sign: f32,
     start_us: u64,
     fraction: f32,
-    damped_us: u64,
+    held_us: u64,
     /// Extra guide rate while making up, as a multiple of it.
     make_up: f32,
     /// Elapsed time at which the making up is done within the pulse.
@@ -29,14 +29,14 @@ pub(super) struct SharedPulse {
     on_until_us: u64,
 }
 
-/// Elapsed µs at which a pulse held back for its first `damped_us` has
+/// Elapsed µs at which a pulse held back for its first `held_us` has
 /// made it up at `1 + make_up` times the guide rate (`u64::MAX`: never).
-fn made_up_at(fraction: f32, damped_us: u64, make_up: f32) -> u64 {
+fn made_up_at(fraction: f32, held_us: u64, make_up: f32) -> u64 {
     if make_up <= 0.0 {
         return u64::MAX;
     }
-    let held = (1.0 - fraction) as f64 * damped_us as f64 / make_up as f64;
-    damped_us.saturating_add(libm::ceil(held) as u64)
+    let held = (1.0 - fraction) as f64 * held_us as f64 / make_up as f64;
+    held_us.saturating_add(libm::ceil(held) as u64)
 }
 
 impl SharedPulse {
@@ -54,18 +54,18 @@ impl SharedPulse {
         if !(f > 0.0 && f < 1.0 && guide_arcsec_per_s > 0.0 && make_up > 0.0) {
             return None;
         }
-        let damped_s = share.up_to_arcsec / guide_arcsec_per_s;
-        if !(damped_s > 0.0 && damped_s < 60.0) {
+        let held_s = share.up_to_arcsec / guide_arcsec_per_s;
+        if !(held_s > 0.0 && held_s < 60.0) {
             return None;
         }
-        let damped_us = (damped_s * 1e6) as u64;
+        let held_us = (held_s * 1e6) as u64;
         Some(SharedPulse {
             sign: direction.sign(),
             start_us,
             fraction: f,
-            damped_us,
+            held_us,
             make_up,
-            made_up_us: made_up_at(f, damped_us, make_up),
+            made_up_us: made_up_at(f, held_us, make_up),
             end_us: None,
             on_until_us: 0,
         })
@@ -74,11 +74,11 @@ impl SharedPulse {
     /// Guide-rate µs carried out `elapsed` µs into the pulse.
     fn done_us(&self, elapsed: u64) -> f64 {
         let f = self.fraction as f64;
-        if elapsed <= self.damped_us {
+        if elapsed <= self.held_us {
             return f * elapsed as f64;
         }
-        let over = (elapsed - self.damped_us) as f64;
-        let done = f * self.damped_us as f64 + (1.0 + self.make_up as f64) * over;
+        let over = (elapsed - self.held_us) as f64;
+        let done = f * self.held_us as f64 + (1.0 + self.make_up as f64) * over;
         done.min(elapsed as f64)
     }
 
@@ -87,7 +87,7 @@ impl SharedPulse {
     pub fn end(&mut self, at_us: u64) -> bool {
         let elapsed = at_us.saturating_sub(self.start_us);
         self.end_us = Some(at_us);
-        if elapsed <= self.damped_us {
+        if elapsed <= self.held_us {
             return false;
         }
         let owed = elapsed as f64 - self.done_us(elapsed);
@@ -95,11 +95,11 @@ impl SharedPulse {
         self.on_until_us > at_us
     }
 
-    /// Whether the pulse was held back (it ended no longer than the damped
+    /// Whether the pulse was held back (it ended no longer than the held
     /// part).
     pub fn held_back(&self) -> bool {
         self.end_us
-            .is_some_and(|end| end.saturating_sub(self.start_us) <= self.damped_us)
+            .is_some_and(|end| end.saturating_sub(self.start_us) <= self.held_us)
     }
 
     /// Signed multiple of the guide rate at `now_us`.
@@ -109,7 +109,7 @@ impl SharedPulse {
             Some(_) => 0.0,
             None => {
                 let elapsed = now_us.saturating_sub(self.start_us);
-                if elapsed < self.damped_us {
+                if elapsed < self.held_us {
                     self.fraction
                 } else if elapsed < self.made_up_us {
                     1.0 + self.make_up
@@ -132,9 +132,9 @@ impl SharedPulse {
         let t = match self.end_us {
             Some(_) => self.on_until_us,
             None => {
-                let damped = self.start_us.saturating_add(self.damped_us);
-                if now_us < damped {
-                    damped
+                let held = self.start_us.saturating_add(self.held_us);
+                if now_us < held {
+                    held
                 } else {
                     self.start_us.saturating_add(self.made_up_us)
                 }
@@ -176,9 +176,10 @@ mod tests {
 
     #[test]
     fn a_short_pulse_is_held_back_and_a_long_one_made_up() {
-        // 1 arcsec at 10 arcsec/s: damped for 100 ms.
-        let start =
-            |make_up| SharedPulse::start(Direction::Plus, 0, SHARE, 10.0, make_up).expect("damped");
+        // 1 arcsec at 10 arcsec/s: held back for 100 ms.
+        let start = |make_up| {
+            SharedPulse::start(Direction::Plus, 0, SHARE, 10.0, make_up).expect("held back")
+        };
         let mut p = start(1.0);
         assert!((carried(&mut p, 80_000, 1_000_000) - 20_000.0).abs() < 1.0);
         assert!(p.held_back());

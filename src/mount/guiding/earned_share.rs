@@ -1,5 +1,5 @@
 //! How much of the guider's RA pulses the firmware carries out, earned by
-//! measurement (docs/decisions.md, "Pulse damping").
+//! measurement (docs/decisions.md, "The earned pulse share").
 //!
 //! Behind a learned feed-forward the guider's pulses do two things: they
 //! correct what the model does not explain, and they react to the noise of
@@ -27,9 +27,9 @@
 //! measurement, a guider that overcorrects (an effective gain of 2) and
 //! that the share had held would swing again, and that swing, at about
 //! four frames a period, makes neighbouring pulses correlated: nothing here
-//! would damp it again (docs/results.md, "Where the guider alone is
+//! would lower the share again (docs/results.md, "Where the guider alone is
 //! unstable"). Such a swing makes pulses two frames apart anti-correlated;
-//! [`Damping::swing`] measures that for `super::pulse_weight`.
+//! [`EarnedShare::swing`] measures that for `super::pulse_weight`.
 //!
 //! Across a power cycle: the share and the statistics behind it are saved
 //! with the model ([`SavedShare`], in the learner's record), so a night
@@ -61,8 +61,8 @@ const MAX_SAVED_SQUARE: f32 = 1e6;
 
 /// The measured share of the RA guide pulses to carry out.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Damping {
-    /// The configured least share; 1 switches damping off.
+pub struct EarnedShare {
+    /// The configured least share; 1: every pulse in full.
     least: f32,
     fraction: f32,
     /// Running means of the pulse squared and of the products of pulses
@@ -82,11 +82,11 @@ pub struct Damping {
     restored: Option<f32>,
 }
 
-/// The damping and the pulse weight as saved with the model: [`SAVED_LEN`]
+/// The earned share and the pulse weight as saved with the model: [`SAVED_LEN`]
 /// bytes, little-endian: the share, the mean square of the pulses, the
 /// mean product of neighbouring ones and the pulse weight
 /// (`super::pulse_weight`; `f32` each), and the CRC-32 of those 16 bytes.
-/// A damping that has measured nothing yet saves share 1 and zeros:
+/// A share that has measured nothing yet saves share 1 and zeros:
 /// nothing to restore.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SavedShare {
@@ -159,11 +159,11 @@ impl SavedShare {
     }
 }
 
-impl Damping {
+impl EarnedShare {
     /// `least`: the least share
     /// ([`MountConfig::least_pulse_share`](crate::mount::config::MountConfig::least_pulse_share)).
     pub const fn new(least: f32) -> Self {
-        Damping {
+        EarnedShare {
             least,
             fraction: 1.0,
             square: 0.0,
@@ -315,7 +315,7 @@ mod tests {
     /// noise of 1 arcsec and an error that walks by `walk` arcsec per
     /// frame: the mean share over frames 1000 to 3000.
     fn mean_share(walk: f64, trusted: bool) -> f64 {
-        let mut d = Damping::new(0.2);
+        let mut d = EarnedShare::new(0.2);
         let mut noise = Gaussian::new(3);
         let (mut error, mut sum) = (0.0f64, 0.0);
         for k in 0..3_000 {
@@ -343,7 +343,7 @@ mod tests {
     fn a_swing_of_four_frames_reads_below_the_bound_and_noise_does_not() {
         use crate::mount::guiding::pulse_weight::SWING;
         // A loop reacting to noise alone, at every share it earns.
-        let mut d = Damping::new(0.2);
+        let mut d = EarnedShare::new(0.2);
         let mut noise = Gaussian::new(7);
         let mut error = 0.0f64;
         let mut least = f32::INFINITY;
@@ -357,7 +357,7 @@ mod tests {
         }
         assert!(least > SWING, "{least}");
         // Four frames a period under the same noise.
-        let mut d = Damping::new(0.2);
+        let mut d = EarnedShare::new(0.2);
         for k in 0..200 {
             let swing = [3.0, 3.0, -3.0, -3.0][k % 4];
             d.frame(Some((swing + noise.next()) as f32), true);
@@ -366,7 +366,7 @@ mod tests {
     }
 
     /// Noise alone, anti-correlated pulses, until a share is earned.
-    fn earned(d: &mut Damping) {
+    fn earned(d: &mut EarnedShare) {
         let mut noise = Gaussian::new(5);
         for _ in 0..1_000 {
             let u = noise.next() as f32;
@@ -377,14 +377,14 @@ mod tests {
 
     #[test]
     fn a_saved_share_comes_back_only_behind_a_trusted_model() {
-        let mut d = Damping::new(0.2);
+        let mut d = EarnedShare::new(0.2);
         earned(&mut d);
         let saved = d.saved();
         assert!(saved.fraction < 0.5, "{saved:?}");
         let back = SavedShare::parse(&saved.to_bytes()).unwrap();
         assert_eq!(back, saved);
         // Not trusted: full pulses, and the share once trusted again.
-        let mut r = Damping::new(0.2);
+        let mut r = EarnedShare::new(0.2);
         r.restore(back);
         assert_eq!(r.frame(Some(0.1), false), PulseShare::FULL);
         let mut share = 1.0;
@@ -394,19 +394,19 @@ mod tests {
         }
         assert!(share < 0.5, "{share}");
         // Trusted from the start: the saved share at once.
-        let mut r = Damping::new(0.2);
+        let mut r = EarnedShare::new(0.2);
         r.restore(back);
         let share = r.frame(Some(0.1), true).fraction;
         assert!((share - saved.fraction).abs() < 0.05, "{share}");
         // Nothing measured, nothing saved: earned again.
-        let fresh = Damping::new(0.2).saved();
+        let fresh = EarnedShare::new(0.2).saved();
         r.restore(fresh);
         assert_eq!(r.frame(Some(0.1), true), PulseShare::FULL);
     }
 
     #[test]
     fn a_cut_or_garbled_saved_share_is_refused() {
-        let mut d = Damping::new(0.2);
+        let mut d = EarnedShare::new(0.2);
         earned(&mut d);
         let bytes = d.saved().to_bytes();
         assert_eq!(
@@ -443,7 +443,7 @@ mod tests {
 
     #[test]
     fn pulses_beyond_the_recent_ones_bring_full_pulses_only_twice_the_same_way() {
-        let mut d = Damping::new(0.2);
+        let mut d = EarnedShare::new(0.2);
         let mut noise = Gaussian::new(4);
         for _ in 0..1_000 {
             // Anti-correlated pulses: a loop reacting to noise.
@@ -471,7 +471,7 @@ mod tests {
         assert_eq!(d.frame(None, true), PulseShare::FULL);
         assert_eq!(d.frame(Some(f32::NAN), true), PulseShare::FULL);
         // Switched off.
-        let mut off = Damping::new(1.0);
+        let mut off = EarnedShare::new(1.0);
         for k in 0..500 {
             let u = if k % 2 == 0 { 1.0 } else { -1.0 };
             assert_eq!(off.frame(Some(u), true), PulseShare::FULL);
