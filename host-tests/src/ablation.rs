@@ -20,7 +20,8 @@
 //! that change over [`RESAMPLES`] redraws of the mounts with replacement
 //! (the bootstrap): what another population seed would move it by. The
 //! addition pays when it improves the median or the worst by more than
-//! its spread at either noise level.
+//! its spread at either noise level; it is mixed when it also makes one of
+//! them worse by more than its spread.
 
 use crate::cases::Case;
 use crate::closed_loop::{self, Conditions, NOISY_SEEDS};
@@ -295,6 +296,44 @@ impl Worth {
     pub fn pays(&self) -> bool {
         self.median_change > self.median_spread || self.worst_change > self.worst_spread
     }
+
+    /// The addition makes the median or the worst worse by more than its
+    /// spread.
+    pub fn hurts(&self) -> bool {
+        -self.median_change > self.median_spread || -self.worst_change > self.worst_spread
+    }
+}
+
+/// What an addition's worth at both levels comes to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Verdict {
+    /// It pays at a level and hurts at none.
+    Pays,
+    /// It pays at a level and hurts at another, or at the other figure.
+    Mixed,
+    /// It pays at no level.
+    DoesNotPay,
+}
+
+impl Verdict {
+    pub fn of(worth: &[Worth; 2]) -> Verdict {
+        match (
+            worth.iter().any(Worth::pays),
+            worth.iter().any(Worth::hurts),
+        ) {
+            (true, false) => Verdict::Pays,
+            (true, true) => Verdict::Mixed,
+            (false, _) => Verdict::DoesNotPay,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Verdict::Pays => "yes",
+            Verdict::Mixed => "mixed",
+            Verdict::DoesNotPay => "no",
+        }
+    }
 }
 
 /// All on against one off, per level; `numbers`: the mounts' numbers in
@@ -392,6 +431,14 @@ mod tests {
             "{at_seeing:?}"
         );
         assert_eq!(at_seeing.off.worse, 1);
+        assert!(!free.hurts() && !at_seeing.hurts());
+        assert_eq!(Verdict::of(&[free, at_seeing]), Verdict::Pays);
+        // Better off at one level than on: mixed.
+        let better = figures(base.iter().map(|r| r - 0.1).collect(), base.clone());
+        let [worse_free, _] = worth(&numbers, &on, &better);
+        assert!(worse_free.hurts() && !worse_free.pays());
+        assert_eq!(Verdict::of(&[worse_free, free]), Verdict::Mixed);
+        assert_eq!(Verdict::of(&[worse_free, worse_free]), Verdict::DoesNotPay);
     }
 
     #[test]

@@ -1168,7 +1168,7 @@ fn cmd_ablate(AblateArgs { seed, count, only }: AblateArgs) -> ExitCode {
          spread: bootstrap SD over redrawn mounts"
     );
     println!(
-        "{:<22} {:<8} {:<6} {:>6} {:>6} {:>13} {:>5} {:>15} {:>15} {:>4} {:>6}  logs: gain %",
+        "{:<22} {:<8} {:<6} {:>6} {:>6} {:>13} {:>5} {:>15} {:>15} {:>5} {:>6}  logs: gain %",
         "addition",
         "loop",
         "noise",
@@ -1181,7 +1181,7 @@ fn cmd_ablate(AblateArgs { seed, count, only }: AblateArgs) -> ExitCode {
         "pays",
         "cases"
     );
-    let (mut pays, mut not) = (Vec::new(), Vec::new());
+    let mut verdicts = Vec::new();
     for lp in [Loop::Model, Loop::Firmware] {
         let these: Vec<&str> = names
             .iter()
@@ -1214,18 +1214,24 @@ fn cmd_ablate(AblateArgs { seed, count, only }: AblateArgs) -> ExitCode {
                 }
             };
             let w = ablation::worth(&numbers, &on, &off);
-            let verdict = w.iter().any(|w| w.pays());
+            let verdict = ablation::Verdict::of(&w);
             print_worth(name, lp, &w, Some(verdict), &off);
-            if verdict {
-                pays.push(*name)
-            } else {
-                not.push(*name)
-            }
+            verdicts.push((*name, verdict));
             progress(&format!("{name} off ({}/{})", k + 1, these.len()));
         }
     }
-    println!("pays: {}", pays.join(", "));
-    println!("does not pay: {}", not.join(", "));
+    for v in [
+        ablation::Verdict::Pays,
+        ablation::Verdict::Mixed,
+        ablation::Verdict::DoesNotPay,
+    ] {
+        let names: Vec<&str> = verdicts
+            .iter()
+            .filter(|(_, w)| *w == v)
+            .map(|(n, _)| *n)
+            .collect();
+        println!("pays {}: {}", v.name(), names.join(", "));
+    }
     ExitCode::SUCCESS
 }
 
@@ -1234,7 +1240,7 @@ fn print_worth(
     name: &str,
     lp: ablation::Loop,
     worth: &[ablation::Worth; 2],
-    verdict: Option<bool>,
+    verdict: Option<ablation::Verdict>,
     figures: &ablation::Figures,
 ) {
     for w in worth {
@@ -1249,7 +1255,7 @@ fn print_worth(
             .map(|g| format!("{g:.2}"))
             .collect();
         println!(
-            "{:<22} {:<8} {:<6} {:>6.3} {:>6.3} {:>13} {:>5} {:>15} {:>15} {:>4} {:>6.3}  {}",
+            "{:<22} {:<8} {:<6} {:>6.3} {:>6.3} {:>13} {:>5} {:>15} {:>15} {:>5} {:>6.3}  {}",
             name,
             lp.name(),
             w.level.name(),
@@ -1259,11 +1265,7 @@ fn print_worth(
             s.worse,
             change(w.median_change, w.median_spread),
             change(w.worst_change, w.worst_spread),
-            match verdict {
-                Some(true) => "yes",
-                Some(false) => "no",
-                None => "",
-            },
+            verdict.map_or("", ablation::Verdict::name),
             figures.cases_mean(w.level),
             logs.join(" ")
         );
