@@ -36,6 +36,7 @@ use crate::replay;
 use crate::st4_sim::{self, Firmware, Setup};
 use crate::table::{self, Column};
 use mkgp_mount::model::additions::Additions;
+use mkgp_mount::mount::config::MountConfig;
 use rayon::prelude::*;
 
 /// The additions the firmware's loop measures: the learner's, the loop's
@@ -93,62 +94,72 @@ fn noise_px(mount: &Mount, level: Level) -> f64 {
     }
 }
 
-/// RMS of MKGP (`Some(additions)`) or of the loop's baseline (`None`) on
-/// `mount` at `level`, from its first run seed.
-fn mount_rms(mount: &Mount, lp: Loop, level: Level, mkgp: Option<Additions>) -> f64 {
-    let noise = noise_px(mount, level);
-    let seed = mount.seeds()[0];
-    match lp {
-        Loop::Model => {
-            let seeds = [seed];
-            match mkgp {
-                Some(a) => {
-                    closed_loop::rms_in(&mount.case, noise, &seeds, &mount.conditions(), || {
-                        models::carrying(Model::Mkgp, None, None, Carry::default(), a)
-                    })
-                }
-                None => table::rms_in(
-                    &mount.case,
-                    noise,
-                    &seeds,
-                    &mount.conditions(),
-                    Column::Reactive,
-                ),
-            }
-        }
-        Loop::Firmware => {
-            let (firmware, additions) = match mkgp {
-                Some(a) => (Firmware::Mkgp, a),
-                None => (Firmware::GuiderOnly, Additions::ALL),
-            };
-            let setup = Setup {
-                additions,
-                ..mount.setup()
-            };
-            st4_sim::run_on(&mount.case, firmware, noise, seed, setup, mount.config()).rms
-        }
-    }
+/// One cell of a loop: a gear error at a noise level over seeds (the first
+/// alone when noise-free), and what each loop is given besides.
+struct Cell<'a> {
+    case: &'a Case,
+    noise: f64,
+    seeds: Vec<u64>,
+    conditions: Conditions,
+    setup: Setup,
+    config: MountConfig,
 }
 
-/// RMS of MKGP or the baseline on a paper case, as its table's cell.
-fn case_rms(case: &Case, lp: Loop, noise: f64, mkgp: Option<Additions>) -> f64 {
-    match lp {
-        Loop::Model => match mkgp {
-            Some(a) => closed_loop::rms_in(case, noise, &NOISY_SEEDS, &Conditions::PAPER, || {
-                models::carrying(Model::Mkgp, None, None, Carry::default(), a)
-            }),
-            None => closed_loop::rms_at(case, noise, || table::make(Column::Reactive)),
-        },
-        Loop::Firmware => {
-            let (firmware, additions) = match mkgp {
-                Some(a) => (Firmware::Mkgp, a),
-                None => (Firmware::GuiderOnly, Additions::ALL),
-            };
-            let setup = Setup {
-                additions,
-                ..Setup::default()
-            };
-            st4_sim::mean_rms(case, firmware, noise, setup)
+impl<'a> Cell<'a> {
+    /// `mount` at `level`, from its first run seed.
+    fn mount(mount: &'a Mount, level: Level) -> Self {
+        Cell {
+            case: &mount.case,
+            noise: noise_px(mount, level),
+            seeds: mount.seeds()[..1].to_vec(),
+            conditions: mount.conditions(),
+            setup: mount.setup(),
+            config: mount.config(),
+        }
+    }
+
+    /// A paper case as its tables run it.
+    fn case(case: &'a Case, noise: f64) -> Self {
+        Cell {
+            case,
+            noise,
+            seeds: NOISY_SEEDS.to_vec(),
+            conditions: Conditions::PAPER,
+            setup: Setup::default(),
+            config: st4_sim::mount_config(case),
+        }
+    }
+
+    /// RMS of MKGP (`Some(additions)`) or of the loop's baseline (`None`),
+    /// the mean over the seeds.
+    fn rms(&self, lp: Loop, mkgp: Option<Additions>) -> f64 {
+        match lp {
+            Loop::Model => {
+                let make = || match mkgp {
+                    Some(a) => models::carrying(Model::Mkgp, None, None, Carry::default(), a),
+                    None => table::make(Column::Reactive),
+                };
+                closed_loop::rms_in(self.case, self.noise, &self.seeds, &self.conditions, make)
+            }
+            Loop::Firmware => {
+                let (firmware, additions) = match mkgp {
+                    Some(a) => (Firmware::Mkgp, a),
+                    None => (Firmware::GuiderOnly, Additions::ALL),
+                };
+                let setup = Setup {
+                    additions,
+                    ..self.setup
+                };
+                let seeds = if self.noise > 0.0 {
+                    &self.seeds[..]
+                } else {
+                    &self.seeds[..1]
+                };
+                let rms = seeds.iter().map(|&seed| {
+                    st4_sim::run_on(self.case, firmware, self.noise, seed, setup, self.config).rms
+                });
+                rms.sum::<f64>() / seeds.len() as f64
+            }
         }
     }
 }
@@ -203,12 +214,12 @@ impl<'a> Bench<'a> {
         let baseline_mounts = LEVELS.map(|l| {
             mounts
                 .par_iter()
-                .map(|m| mount_rms(m, lp, l, None))
+                .map(|m| Cell::mount(m, l).rms(lp, None))
                 .collect()
         });
         let baseline_cases = case_cells(cases)
             .par_iter()
-            .map(|&(c, noise)| case_rms(c, lp, noise, None))
+            .map(|&(c, noise)| Cell::case(c, noise).rms(lp, None))
             .collect();
         Bench {
             lp,
@@ -227,14 +238,14 @@ impl<'a> Bench<'a> {
             let rms: Vec<f64> = self
                 .mounts
                 .par_iter()
-                .map(|m| mount_rms(m, lp, l, Some(additions)))
+                .map(|m| Cell::mount(m, l).rms(lp, Some(additions)))
                 .collect();
             let base = &self.baseline_mounts[level_index(l)];
             rms.iter().zip(base).map(|(r, b)| r / b).collect()
         });
         let cases = case_cells(self.cases)
             .par_iter()
-            .map(|&(c, noise)| case_rms(c, lp, noise, Some(additions)))
+            .map(|&(c, noise)| Cell::case(c, noise).rms(lp, Some(additions)))
             .collect::<Vec<f64>>()
             .iter()
             .zip(&self.baseline_cases)

@@ -1067,7 +1067,7 @@ pub const CSV_HEADER: &str = "case,noise_px,guider_only,fw_ppec,fw_mkgp";
 
 /// Mean pointing RMS of `firmware` on `case` with `noise_px` of noise (0:
 /// one noise-free run; else the mean over [`SEEDS`], added in seed order).
-pub fn mean_rms(case: &Case, firmware: Firmware, noise_px: f64, setup: Setup) -> f64 {
+fn mean_rms(case: &Case, firmware: Firmware, noise_px: f64, setup: Setup) -> f64 {
     let seeds: &[u64] = if noise_px > 0.0 { &SEEDS } else { &SEEDS[..1] };
     let rms: Vec<f64> = seeds
         .par_iter()
