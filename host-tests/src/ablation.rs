@@ -26,8 +26,7 @@
 use crate::cases::Case;
 use crate::closed_loop::{self, Conditions, NOISY_SEEDS};
 use crate::data::{self, Error};
-use crate::gp::Carry;
-use crate::models::{self, Model};
+use crate::models::Model;
 use crate::noise::SplitMix64;
 use crate::phd2_log;
 use crate::population::summary::{Level, Stats};
@@ -136,8 +135,8 @@ impl<'a> Cell<'a> {
         match lp {
             Loop::Model => {
                 let make = || match mkgp {
-                    Some(a) => models::carrying(Model::Mkgp, None, None, Carry::default(), a),
-                    None => table::make(Column::Reactive),
+                    Some(a) => table::make(Column::Model(Model::Mkgp), a),
+                    None => table::make(Column::Reactive, Additions::ALL),
                 };
                 closed_loop::rms_in(self.case, self.noise, &self.seeds, &self.conditions, make)
             }

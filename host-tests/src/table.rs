@@ -4,8 +4,10 @@
 
 use crate::cases::Case;
 use crate::closed_loop::{self, Conditions};
+use crate::gp::Carry;
 use crate::guide_algorithm::{GuideAlgorithm, Hysteresis};
 use crate::models::{self, Model};
+use mkgp_mount::model::additions::Additions;
 use rayon::prelude::*;
 
 /// The noise levels of the table (px): noise-free, and 1 px (mean of seeds 1-3).
@@ -29,17 +31,18 @@ pub enum Column {
     Model(Model),
 }
 
-pub fn make(column: Column) -> Box<dyn GuideAlgorithm> {
+/// A fresh algorithm for `column`, a model with its `additions` as given.
+pub fn make(column: Column, additions: Additions) -> Box<dyn GuideAlgorithm> {
     match column {
         Column::Reactive => Box::new(Hysteresis::paper()),
-        Column::Model(m) => models::algorithm(m, None, None),
+        Column::Model(m) => models::carrying(m, None, None, Carry::default(), additions),
     }
 }
 
 /// Residual RMS of `column` on `case` with `sigma_px` of noise (0: one
 /// noise-free run).
-fn rms(case: &Case, sigma_px: f64, column: Column) -> f64 {
-    closed_loop::rms_at(case, sigma_px, || make(column))
+fn rms(case: &Case, sigma_px: f64, column: Column, additions: Additions) -> f64 {
+    closed_loop::rms_at(case, sigma_px, || make(column, additions))
 }
 
 /// Residual RMS of `column` on `case` in `conditions`, over `seeds`
@@ -51,19 +54,26 @@ pub fn rms_in(
     conditions: &Conditions,
     column: Column,
 ) -> f64 {
-    closed_loop::rms_in(case, sigma_px, seeds, conditions, || make(column))
+    closed_loop::rms_in(case, sigma_px, seeds, conditions, || {
+        make(column, Additions::ALL)
+    })
 }
 
 /// Compute the table, one row per case and noise level, in that order; the
 /// closed-loop runs are spread over rayon's threads.
 pub fn compute(cases: &[Case]) -> Vec<TableRow> {
+    compute_with(cases, Additions::ALL)
+}
+
+/// [`compute`] with the models' `additions` as given.
+pub fn compute_with(cases: &[Case], additions: Additions) -> Vec<TableRow> {
     let rows: Vec<(&Case, f64)> = cases
         .iter()
         .flat_map(|case| NOISE_LEVELS.map(|noise_px| (case, noise_px)))
         .collect();
     rows.into_par_iter()
         .map(|(case, noise_px)| {
-            let column = |c| rms(case, noise_px, c);
+            let column = |c| rms(case, noise_px, c, additions);
             let ((reactive, ppec), (mkgp, mkgp3)) = rayon::join(
                 || {
                     rayon::join(

@@ -278,7 +278,10 @@ fn st4_guider_settings_must_be_in_range() {
 #[test]
 fn each_subcommand_help_lists_its_options() {
     for (sub, options) in [
-        ("table", &["--cases <FILE>", "--csv"][..]),
+        (
+            "table",
+            &["--cases <FILE>", "--csv", "--without <NAME>"][..],
+        ),
         ("replay", &["[LOG]...", "--csv", "--per-section"]),
         ("bench", &["--csv", "--host-only"]),
         (

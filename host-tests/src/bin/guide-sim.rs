@@ -2,7 +2,7 @@
 //! guide frame and the firmware's ST4 closed loop.
 //!
 //! ```text
-//! guide-sim table [--cases FILE] [--csv]
+//! guide-sim table [--cases FILE] [--csv] [--without NAME]...
 //! guide-sim replay [LOG...] [--csv]
 //! guide-sim bench [--csv] [--host-only]
 //! guide-sim st4 [--case ID] [--cases FILE] [--noise PX] [--csv]
@@ -268,6 +268,9 @@ struct TableArgs {
     /// Print the table as CSV (and write no bar chart)
     #[arg(long)]
     csv: bool,
+    /// Switch off this addition around the paper's model (repeatable; `ablate --help`)
+    #[arg(long, value_name = "NAME", value_parser = addition_name)]
+    without: Vec<String>,
 }
 
 #[derive(Args)]
@@ -503,11 +506,17 @@ fn load_cases(path: Option<PathBuf>) -> Option<(PathBuf, Vec<cases::Case>)> {
     }
 }
 
-fn cmd_table(TableArgs { cases, csv }: TableArgs) -> ExitCode {
+fn cmd_table(
+    TableArgs {
+        cases,
+        csv,
+        without,
+    }: TableArgs,
+) -> ExitCode {
     let Some((_, cases)) = load_cases(cases) else {
         return ExitCode::FAILURE;
     };
-    let rows = table::compute(&cases);
+    let rows = table::compute_with(&cases, additions_without(&without));
     if csv {
         println!("case,noise_px,open_loop,reactive,ppec,mkgp,mkgp3");
         for r in &rows {
