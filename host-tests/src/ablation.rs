@@ -4,10 +4,12 @@
 //! in turn (`mkgp_mount::model::additions`).
 //!
 //! An addition is measured in the loop it belongs to: the learner's, the
-//! loop's fast part's and `grid_lag` ([`FIRMWARE_ADDITIONS`]) in the firmware's (as
+//! loop's fast part's and `grid_lag` ([`FIRMWARE_ADDITIONS`]) in the
+//! firmware's (as
 //! `guide-sim st4`: fw MKGP over the guider alone), the model's in the
-//! model's (as `guide-sim table`: MKGP over the reactive guider). The
-//! baselines do not run the model, so they run once.
+//! model's (as `guide-sim table`: the model over the reactive guider), both
+//! with the firmware's stages ([`MODEL`]). The baselines do not run the
+//! model, so they run once.
 //!
 //! To keep a run within the hour on a 2-core machine, each mount runs
 //! noise-free and at its seeing with its first run seed only (the
@@ -51,6 +53,15 @@ pub const FIRMWARE_ADDITIONS: [&str; 8] = [
     "calibration_watch",
     "grid_lag",
 ];
+
+/// The model the model's loop and the logs run: the firmware's stage
+/// count, so that an addition for a third stage is measured where it acts.
+pub const MODEL: Model = Model::Mkgp3;
+
+/// The smallest change that counts, the resolution the ratios print at:
+/// where the same mount holds the worst in nearly every redraw, the
+/// spread is near 0 and would let a change of 0.0004 pay.
+pub const LEAST_CHANGE: f64 = 0.001;
 
 /// Redraws of the mounts for the spread.
 pub const RESAMPLES: usize = 1000;
@@ -135,7 +146,7 @@ impl<'a> Cell<'a> {
         match lp {
             Loop::Model => {
                 let make = || match mkgp {
-                    Some(a) => table::make(Column::Model(Model::Mkgp), a),
+                    Some(a) => table::make(Column::Model(MODEL), a),
                     None => table::make(Column::Reactive, Additions::ALL),
                 };
                 closed_loop::rms_in(self.case, self.noise, &self.seeds, &self.conditions, make)
@@ -254,7 +265,7 @@ impl<'a> Bench<'a> {
             Loop::Model => self
                 .logs
                 .par_iter()
-                .map(|log| replay::gain_with(log, Model::Mkgp, additions))
+                .map(|log| replay::gain_with(log, MODEL, additions))
                 .collect::<Result<_, _>>()?,
             Loop::Firmware => Vec::new(),
         };
@@ -302,15 +313,19 @@ pub struct Worth {
 
 impl Worth {
     /// The addition improves the median or the worst by more than its
-    /// spread.
+    /// spread (and [`LEAST_CHANGE`]).
     pub fn pays(&self) -> bool {
-        self.median_change > self.median_spread || self.worst_change > self.worst_spread
+        self.beyond(self.median_change, self.worst_change)
     }
 
     /// The addition makes the median or the worst worse by more than its
-    /// spread.
+    /// spread (and [`LEAST_CHANGE`]).
     pub fn hurts(&self) -> bool {
-        -self.median_change > self.median_spread || -self.worst_change > self.worst_spread
+        self.beyond(-self.median_change, -self.worst_change)
+    }
+
+    fn beyond(&self, median: f64, worst: f64) -> bool {
+        median > self.median_spread.max(LEAST_CHANGE) || worst > self.worst_spread.max(LEAST_CHANGE)
     }
 }
 
@@ -395,6 +410,7 @@ pub fn phd2_logs() -> Result<Vec<phd2_log::GuideLog>, Error> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use mkgp_mount::mount::learner::FIRMWARE_STAGES;
 
     fn figures(noise_free: Vec<f64>, seeing: Vec<f64>) -> Figures {
         Figures {
@@ -443,6 +459,12 @@ mod tests {
         assert_eq!(at_seeing.off.worse, 1);
         assert!(!free.hurts() && !at_seeing.hurts());
         assert_eq!(Verdict::of(&[free, at_seeing]), Verdict::Pays);
+        // A change below the resolution pays nothing, whatever its spread.
+        let mut tiny = base.clone();
+        tiny[39] += 0.0004;
+        let [_, slight] = worth(&numbers, &on, &figures(base.clone(), tiny));
+        assert!(slight.worst_change > slight.worst_spread, "{slight:?}");
+        assert!(!slight.pays() && !slight.hurts(), "{slight:?}");
         // Better off at one level than on: mixed.
         let better = figures(base.iter().map(|r| r - 0.1).collect(), base.clone());
         let [worse_free, _] = worth(&numbers, &on, &better);
@@ -461,5 +483,6 @@ mod tests {
             .iter()
             .all(|n| Additions::NAMES.contains(n)));
         assert_eq!(Loop::of("measured_subset"), Loop::Model);
+        assert_eq!(MODEL.stages(), FIRMWARE_STAGES);
     }
 }

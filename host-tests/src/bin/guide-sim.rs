@@ -1172,9 +1172,10 @@ fn cmd_ablate(AblateArgs { seed, count, only }: AblateArgs) -> ExitCode {
         logs.len()
     );
     println!(
-        "ratio: mkgp over the reactive guider (model loop) or fw mkgp over the guider alone \
-         (firmware loop); change: with the addition off less all on (positive: it pays); \
-         spread: bootstrap SD over redrawn mounts"
+        "ratio: the model with {} stages over the reactive guider (model loop) or fw mkgp over \
+         the guider alone (firmware loop); change: with the addition off less all on \
+         (positive: it pays); spread: bootstrap SD over redrawn mounts",
+        ablation::MODEL.stages()
     );
     println!(
         "{:<22} {:<8} {:<6} {:>6} {:>6} {:>13} {:>5} {:>15} {:>15} {:>5} {:>6}  logs: gain %",
