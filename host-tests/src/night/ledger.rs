@@ -118,8 +118,11 @@ pub const LEARN_LAG_US: u64 = 500_000;
 pub struct Tally {
     pub windows: u32,
     pub seconds: f64,
-    /// Frames the learner took from a window's start to [`LEARN_LAG_US`]
-    /// after its end, and of them those it learned as gear error.
+    /// Frames the learner took after a window's start, up to
+    /// [`LEARN_LAG_US`] after its end, and of them those it learned as gear
+    /// error. One taken at the start's very instant was made before it: a
+    /// window opens once the guider's last pulse has ended, and the learner
+    /// takes that pulse's frame as it ends.
     pub frames: u32,
     pub learned: u32,
 }
@@ -131,11 +134,36 @@ pub fn tally(activity: Activity, windows: &[Window], frames: &[FrameLearned]) ->
         t.windows += 1;
         t.seconds += (w.until_us - w.from_us) as f64 * 1e-6;
         let end = w.until_us + LEARN_LAG_US;
-        let from = frames.partition_point(|f| f.at_us < w.from_us);
+        let from = frames.partition_point(|f| f.at_us <= w.from_us);
         let until = frames.partition_point(|f| f.at_us < end);
         let inside = &frames[from..until];
         t.frames += inside.len() as u32;
         t.learned += inside.iter().filter(|f| f.learned).count() as u32;
     }
     t
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_window_counts_the_frames_taken_after_its_start_until_the_lag_after_its_end() {
+        let w = Window {
+            activity: Activity::Slew,
+            from_us: 1_000_000,
+            until_us: 2_000_000,
+        };
+        let at = |at_us, learned| FrameLearned { at_us, learned };
+        let frames = [
+            at(1_000_000, true),
+            at(1_000_001, false),
+            at(2_000_000 + LEARN_LAG_US - 1, true),
+            at(2_000_000 + LEARN_LAG_US, true),
+        ];
+        let t = tally(Activity::Slew, &[w], &frames);
+        assert_eq!((t.windows, t.frames, t.learned), (1, 2, 1));
+        assert_eq!(t.seconds, 1.0);
+        assert_eq!(tally(Activity::Flip, &[w], &frames), Tally::default());
+    }
 }
