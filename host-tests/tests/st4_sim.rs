@@ -29,10 +29,7 @@ fn assert_rates_sane(rig: &Rig) {
     assert!(e.dec_abs_max <= rig.mount.max_dec_steps_per_s());
 }
 
-/// Every case and noise level against the bars. (C5 with 1 px
-/// measured 0.837 x guider alone until a found stage could move to its
-/// octave: seed 2 found the 77.5 s harmonic first: 0.798, and 0.633 with
-/// the earned pulse share.)
+/// Every case and noise level against the bars.
 #[test]
 fn goals() {
     let cases = cases::load(&cases_file()).unwrap_or_else(|e| panic!("{e}"));

@@ -62,32 +62,24 @@ pub struct Additions {
     /// the first spectrum, and the ratio's weight is 0.1 (the period
     /// tracker's, the setting before the addition).
     pub convergence_gate: bool,
-    /// Stage discovery: a candidate is refused until the data spans 1.5
-    /// beat periods against every known stage (the paper's open item).
-    /// Off: no guard.
-    pub resolution_guard: bool,
     /// Stage discovery: a peak in the notch or guard of a known period's
     /// harmonic (k >= 2) is admitted once the data resolves it from that
     /// harmonic. Off: refused whatever the span, as in the paper.
     pub near_harmonic: bool,
-    /// Stage discovery: a found stage whose gate is not fully open moves to
-    /// twice or half its period where that line has twice its power. Off:
-    /// it stays.
-    pub octave_move: bool,
-    /// Stage discovery: a found stage moves up to twice its period where
-    /// that line is its fundamental (a line of its own with at least half
-    /// its power). Off: it stays.
-    pub fundamental_move: bool,
-    /// Stage discovery: a found stage follows its peak in a band of 10 %
-    /// around its own period (where the octave moves are looked at). Off:
-    /// every spectrum it takes the strongest admissible peak of the search
-    /// band, as when it was found, and never moves to an octave.
-    pub follow_band: bool,
     /// Stage discovery: a found stage follows its line past the later
     /// stages that carry no weight yet (an ungated third stage's period
     /// does not notch the second's line). Off: every found stage's period
     /// is notched and guarded, as for a new stage.
     pub follow_past: bool,
+    /// Stage discovery: a found stage moves up to twice its period where
+    /// that line is its fundamental (a line of its own with at least half
+    /// its power). Off: it stays.
+    pub fundamental_move: bool,
+    /// Stage discovery: a found stage follows its peak in a band of 10 %
+    /// around its own period (where its fundamental is looked for). Off:
+    /// every spectrum it takes the strongest admissible peak of the search
+    /// band, as when it was found, and never moves.
+    pub follow_band: bool,
     /// The guider: with more than one stage, the reference blend is
     /// weighted by the trust the model earns in two shadow loops, the
     /// model's against the hysteresis alone (`model::guider::trust`). Off:
@@ -130,12 +122,10 @@ impl Additions {
         narrow_notch: true,
         drop_faded: true,
         convergence_gate: true,
-        resolution_guard: true,
         near_harmonic: true,
-        octave_move: true,
+        follow_past: true,
         fundamental_move: true,
         follow_band: true,
-        follow_past: true,
         trust_shadows: true,
         law_choice: true,
         grid_lag: true,
@@ -143,7 +133,7 @@ impl Additions {
     };
 
     /// Each addition's name, as [`set`](Self::set) takes it.
-    pub const NAMES: [&'static str; 22] = [
+    pub const NAMES: [&'static str; 20] = [
         "bump",
         "pulse_weight",
         "earned_share",
@@ -156,12 +146,10 @@ impl Additions {
         "narrow_notch",
         "drop_faded",
         "convergence_gate",
-        "resolution_guard",
         "near_harmonic",
-        "octave_move",
+        "follow_past",
         "fundamental_move",
         "follow_band",
-        "follow_past",
         "trust_shadows",
         "law_choice",
         "grid_lag",
@@ -183,12 +171,10 @@ impl Additions {
             "narrow_notch" => &mut self.narrow_notch,
             "drop_faded" => &mut self.drop_faded,
             "convergence_gate" => &mut self.convergence_gate,
-            "resolution_guard" => &mut self.resolution_guard,
             "near_harmonic" => &mut self.near_harmonic,
-            "octave_move" => &mut self.octave_move,
+            "follow_past" => &mut self.follow_past,
             "fundamental_move" => &mut self.fundamental_move,
             "follow_band" => &mut self.follow_band,
-            "follow_past" => &mut self.follow_past,
             "trust_shadows" => &mut self.trust_shadows,
             "law_choice" => &mut self.law_choice,
             "grid_lag" => &mut self.grid_lag,
