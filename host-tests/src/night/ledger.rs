@@ -107,6 +107,18 @@ pub struct Window {
     pub activity: Activity,
     pub from_us: u64,
     pub until_us: u64,
+    /// Frames the learner takes up to this long after `from_us` may have
+    /// been made before the window ([`fill_grace_us`]).
+    pub made_before_us: u64,
+}
+
+/// How long after it was made a frame may reach the learner, at the
+/// guider's cadence `cadence_us`: a frame the firmware fills in for a
+/// guider that went quiet comes a quarter of the cadence after it fell
+/// due (the firmware's grace for a late pulse), and the learner's queue
+/// takes it [`LEARN_LAG_US`] after that at most.
+pub fn fill_grace_us(cadence_us: u64) -> u64 {
+    cadence_us / 4 + LEARN_LAG_US
 }
 
 /// A frame made in a window reaches the learner a little after it: when
@@ -118,11 +130,9 @@ pub const LEARN_LAG_US: u64 = 500_000;
 pub struct Tally {
     pub windows: u32,
     pub seconds: f64,
-    /// Frames the learner took after a window's start, up to
-    /// [`LEARN_LAG_US`] after its end, and of them those it learned as gear
-    /// error. One taken at the start's very instant was made before it: a
-    /// window opens once the guider's last pulse has ended, and the learner
-    /// takes that pulse's frame as it ends.
+    /// Frames the learner took from [`Window::made_before_us`] after a
+    /// window's start to [`LEARN_LAG_US`] after its end, and of them those
+    /// it learned as gear error.
     pub frames: u32,
     pub learned: u32,
 }
@@ -134,7 +144,8 @@ pub fn tally(activity: Activity, windows: &[Window], frames: &[FrameLearned]) ->
         t.windows += 1;
         t.seconds += (w.until_us - w.from_us) as f64 * 1e-6;
         let end = w.until_us + LEARN_LAG_US;
-        let from = frames.partition_point(|f| f.at_us <= w.from_us);
+        let start = w.from_us + w.made_before_us;
+        let from = frames.partition_point(|f| f.at_us <= start);
         let until = frames.partition_point(|f| f.at_us < end);
         let inside = &frames[from..until];
         t.frames += inside.len() as u32;
@@ -149,15 +160,17 @@ mod tests {
 
     #[test]
     fn a_window_counts_the_frames_taken_after_its_start_until_the_lag_after_its_end() {
+        assert_eq!(fill_grace_us(10_000_000), 2_500_000 + LEARN_LAG_US);
         let w = Window {
             activity: Activity::Slew,
             from_us: 1_000_000,
             until_us: 2_000_000,
+            made_before_us: 250_000,
         };
         let at = |at_us, learned| FrameLearned { at_us, learned };
         let frames = [
-            at(1_000_000, true),
-            at(1_000_001, false),
+            at(1_250_000, true),
+            at(1_250_001, false),
             at(2_000_000 + LEARN_LAG_US - 1, true),
             at(2_000_000 + LEARN_LAG_US, true),
         ];

@@ -13,7 +13,7 @@
 //! [`FIRST_S`] after guiding began.
 
 use super::calibration::{self, Calibration, Leg, Next};
-use super::ledger::{Activity, Rms, Window};
+use super::ledger::{self, Activity, Rms, Window};
 use super::phd2_writer::{Calibrated, Header, Phd2Writer, Pointing, Row};
 use super::script::{self, Event, Section, Way, What};
 use crate::mount_sim::IDENTITY;
@@ -181,6 +181,8 @@ pub struct Session {
     slew_stop: Option<(u64, Way, bool)>,
     /// The guider stopped at.
     off_since_us: Option<u64>,
+    /// The interval of the guider's frames, this section's or the last.
+    cadence_us: u64,
 }
 
 /// A value from the seed and a key, uniform in [0, 1): the same for every
@@ -241,6 +243,7 @@ impl Session {
             dithers: Vec::new(),
             slew_stop: None,
             off_since_us: Some(0),
+            cadence_us: 0,
         }
     }
 
@@ -273,12 +276,20 @@ impl Session {
         }
     }
 
-    fn window(&mut self, activity: Activity, from_us: u64) {
+    /// A window of `activity`; the frames made before it may reach the
+    /// learner up to a filled frame's grace after it opens.
+    fn open_window(&mut self, activity: Activity, from_us: u64, until_us: u64) {
         self.windows.push(Window {
             activity,
             from_us,
-            until_us: self.rig.now_us,
+            until_us,
+            made_before_us: ledger::fill_grace_us(self.cadence_us),
         });
+    }
+
+    fn window(&mut self, activity: Activity, from_us: u64) {
+        let until_us = self.rig.now_us;
+        self.open_window(activity, from_us, until_us);
     }
 
     fn scoring(&mut self, on: bool) {
@@ -565,15 +576,13 @@ impl Session {
         let now = self.rig.now_us;
         let until = now + us(seconds);
         self.slew_stop = Some((until, way, flip));
-        self.windows.push(Window {
-            activity: if flip { Activity::Flip } else { Activity::Slew },
-            from_us: now,
-            until_us: until,
-        });
+        let activity = if flip { Activity::Flip } else { Activity::Slew };
+        self.open_window(activity, now, until);
     }
 
     fn start(&mut self, spec: Section) {
         let now = self.rig.now_us;
+        self.cadence_us = us(spec.interval_s);
         if let Some(from) = self.off_since_us.take() {
             self.window(Activity::GuiderOff, from);
         }
@@ -792,11 +801,7 @@ impl Session {
         }
         let c = self.rig.guide(e.measured_arcsec);
         if let Some(p) = c.pulse.filter(|_| c.dither) {
-            self.windows.push(Window {
-                activity: Activity::Dither,
-                from_us: p.start_us,
-                until_us: p.start_us + p.duration_us,
-            });
+            self.open_window(Activity::Dither, p.start_us, p.start_us + p.duration_us);
         }
         let Some(a) = self.section.as_mut() else {
             return;
