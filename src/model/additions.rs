@@ -66,6 +66,10 @@ pub struct Additions {
     /// harmonic (k >= 2) is admitted once the data resolves it from that
     /// harmonic. Off: refused whatever the span, as in the paper.
     pub near_harmonic: bool,
+    /// Stage discovery: a found stage whose gate is not fully open moves to
+    /// twice or half its period where that line has twice its power. Off:
+    /// it stays.
+    pub octave_move: bool,
     /// Stage discovery: a found stage follows its line past the later
     /// stages that carry no weight yet (an ungated third stage's period
     /// does not notch the second's line). Off: every found stage's period
@@ -76,9 +80,9 @@ pub struct Additions {
     /// its power). Off: it stays.
     pub fundamental_move: bool,
     /// Stage discovery: a found stage follows its peak in a band of 10 %
-    /// around its own period (where its fundamental is looked for). Off:
+    /// around its own period (where the octave moves are looked at). Off:
     /// every spectrum it takes the strongest admissible peak of the search
-    /// band, as when it was found, and never moves.
+    /// band, as when it was found, and never moves to an octave.
     pub follow_band: bool,
     /// The guider: with more than one stage, the reference blend is
     /// weighted by the trust the model earns in two shadow loops, the
@@ -123,6 +127,7 @@ impl Additions {
         drop_faded: true,
         convergence_gate: true,
         near_harmonic: true,
+        octave_move: true,
         follow_past: true,
         fundamental_move: true,
         follow_band: true,
@@ -133,7 +138,7 @@ impl Additions {
     };
 
     /// Each addition's name, as [`set`](Self::set) takes it.
-    pub const NAMES: [&'static str; 20] = [
+    pub const NAMES: [&'static str; 21] = [
         "bump",
         "pulse_weight",
         "earned_share",
@@ -147,6 +152,7 @@ impl Additions {
         "drop_faded",
         "convergence_gate",
         "near_harmonic",
+        "octave_move",
         "follow_past",
         "fundamental_move",
         "follow_band",
@@ -172,6 +178,7 @@ impl Additions {
             "drop_faded" => &mut self.drop_faded,
             "convergence_gate" => &mut self.convergence_gate,
             "near_harmonic" => &mut self.near_harmonic,
+            "octave_move" => &mut self.octave_move,
             "follow_past" => &mut self.follow_past,
             "fundamental_move" => &mut self.fundamental_move,
             "follow_band" => &mut self.follow_band,

@@ -78,7 +78,7 @@ const LEVEL_CELLS: u32 = 12;
 /// (83 min) that a snapshot keeps span 1.6 between C2's 380 s stage and
 /// its 432 s worm. Two lobes that close merge or not by the two lines'
 /// phases, which a restore changes: the stage's line vanished on most
-/// night-2 phases, its gate closed and the search moved it away.
+/// night-2 phases, its gate closed and the octave rule moved it away.
 const HOLD_BEATS: f64 = 2.5;
 
 /// A restored grid whose spectrum is not read: its periods, stages and

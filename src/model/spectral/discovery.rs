@@ -2,15 +2,14 @@
 //!
 //! Each new spectrum, every stage s > 0 that has no period yet searches the
 //! spectrum for the strongest peak that is neither notched (a harmonic or
-//! sub-harmonic of a known stage) nor commensurate with one, inside the
-//! band `[4 cells, 1.2 P_0]` or around a user-supplied seed. A peak in a
-//! notch or the guard around a harmonic (or multiple) of a known stage is
-//! admitted once the data spans [`HARMONIC_BEATS`] beat periods against
-//! that harmonic: it is then a line of its own, a gear a few percent off
-//! the worm's k-th harmonic, not the harmonic itself. A found stage then
-//! follows its peak in a band around its own period, and moves up to its
-//! fundamental where that is a line of its own; its evidence gate opens
-//! with the peak's amplitude relative to the worm's.
+//! sub-harmonic of a known stage) nor commensurate with one, inside the band
+//! `[4 cells, 1.2 P_0]` or around a user-supplied seed. A peak in a notch or the guard around a harmonic (or
+//! multiple) of a known stage is admitted once the data spans
+//! [`HARMONIC_BEATS`] beat periods against that harmonic: it is then a line
+//! of its own, a gear a few percent off the worm's k-th harmonic, not the
+//! harmonic itself. A found stage then follows its peak in a band around
+//! its own period; its evidence gate opens with the peak's amplitude
+//! relative to the worm's.
 
 use crate::model::additions::Additions;
 use crate::model::gp::grid::CELL_S;
@@ -49,8 +48,10 @@ pub const FOLLOW_WIDTH: f64 = 0.1;
 pub const HARMONIC_BEATS: f64 = 1.5;
 /// A found stage moves up to twice its period where that line has at least
 /// 1 / this of its own power and would open a gate on its own (the stage's
-/// fundamental: a kernel of period 2P also represents P), only to periods
-/// below [`MOVE_MAX_WORM_PERIODS`] worm periods.
+/// fundamental: a kernel of period 2P also represents P); a stage not yet
+/// fully gated in moves to twice or half its period where that peak has
+/// this many times its own power; either only to periods below this many
+/// worm periods. Measured on C5-C8 and the PHD2 logs: see `docs/model.md`.
 pub const MOVE_POWER_RATIO: f64 = 2.0;
 pub const MOVE_MAX_WORM_PERIODS: f64 = 0.9;
 /// Evidence gate thresholds on the smoothed amplitude ratio.
@@ -201,24 +202,33 @@ fn peak_near<S: Scalar>(
     )
 }
 
-/// A found stage's line and where it may move.
-struct Follow {
-    /// The stage's period and its own peak, if any.
+/// Where a found stage's line stands against its octaves: a periodic
+/// kernel of period 2P also represents a line at P (its second harmonic),
+/// one of period P never a line at 2P.
+struct Octaves {
+    /// The stage's period and the power of its own peak (0: none).
     own: f64,
-    peak: Option<Peak>,
+    own_power: f64,
+    /// The stage's gate is not fully open, and a weak stage may move
+    /// where the energy is (`octave_move`).
+    weak: bool,
+    /// The stage may move up to its fundamental (`fundamental_move`).
+    fundamental: bool,
     worm_power: f64,
-    /// The longest period a stage may move to.
-    max_period: f64,
+    /// The periods a stage may move to.
+    range: (f64, f64),
 }
 
-impl Follow {
-    /// The stage's fundamental, if it moves there: the line at twice its
-    /// period, where that is a line of its own (the weakest amplitude
-    /// ratio that opens a gate) with at least 1 / [`MOVE_POWER_RATIO`] of
-    /// the stage's power, as C6's 155 s beside its 77.5 s harmonic (C7's
-    /// weak 155 s stays below). A periodic kernel of period 2P also
-    /// represents a line at P, one of period P never a line at 2P.
-    fn fundamental<S: Scalar>(
+impl Octaves {
+    /// The peak the stage moves to, if any. Up to twice its period where
+    /// that line is the stage's fundamental: a line of its own (the
+    /// weakest amplitude ratio that opens a gate) with at least
+    /// 1 / [`MOVE_POWER_RATIO`] of the stage's power, as C6's 155 s beside
+    /// its 77.5 s harmonic (C7's weak 155 s stays below); or, for a weak
+    /// stage, where the energy clearly is (C5, a PHD2 log's 45 s stage
+    /// on its way to 180 s). Down to half its period only for a weak stage
+    /// whose line is clearly weaker than that one.
+    fn choose<S: Scalar>(
         &self,
         spectrum: &Spectrum<'_, S>,
         known: &[f64],
@@ -226,14 +236,21 @@ impl Follow {
         span_s: f64,
         adds: &Additions,
     ) -> Option<Peak> {
-        let up = 2.0 * self.own;
-        if up > self.max_period {
-            return None;
-        }
-        let own_power = self.peak.map_or(0.0, |p| p.power);
-        peak_near(spectrum, up, known, lines, span_s, adds).filter(|r| {
-            r.power >= own_power / MOVE_POWER_RATIO
-                && r.power >= GATE_OFF * GATE_OFF * self.worm_power
+        let movable = |p: f64| p >= self.range.0 && p <= self.range.1;
+        let octave = |p: f64| {
+            movable(p)
+                .then(|| peak_near(spectrum, p, known, lines, span_s, adds))
+                .flatten()
+        };
+        let up = octave(2.0 * self.own).filter(|r| {
+            let fundamental = self.fundamental
+                && r.power >= self.own_power / MOVE_POWER_RATIO
+                && r.power >= GATE_OFF * GATE_OFF * self.worm_power;
+            fundamental || (self.weak && r.power > MOVE_POWER_RATIO * self.own_power)
+        });
+        up.or_else(|| {
+            octave(0.5 * self.own)
+                .filter(|r| self.weak && r.power > MOVE_POWER_RATIO * self.own_power)
         })
     }
 }
@@ -354,23 +371,24 @@ impl<const N: usize> Discovery<N> {
             let band_lo = 4.0 * CELL_S;
             let band_hi = BAND_WORM_PERIODS * trackers[0].period_s;
             let peak = if stage.found && adds.follow_band {
-                let follow = Follow {
-                    own: trackers[s].period_s,
-                    peak: peak_near(spectrum, trackers[s].period_s, known, lines, span_s, adds),
+                let own = trackers[s].period_s;
+                let mut peak = peak_near(spectrum, own, known, lines, span_s, adds);
+                let octaves = Octaves {
+                    own,
+                    own_power: peak.map_or(0.0, |p| p.power),
+                    weak: adds.octave_move && stage.ratio < GATE_FULL,
+                    fundamental: adds.fundamental_move,
                     worm_power,
-                    max_period: MOVE_MAX_WORM_PERIODS * trackers[0].period_s,
+                    range: (band_lo, MOVE_MAX_WORM_PERIODS * trackers[0].period_s),
                 };
-                let up = adds
-                    .fundamental_move
-                    .then(|| follow.fundamental(spectrum, known, lines, span_s, adds))
-                    .flatten();
-                if let Some(r) = up {
+                if let Some(r) = octaves.choose(spectrum, known, lines, span_s, adds) {
+                    peak = Some(r);
                     trackers[s] = PeriodTracker {
                         period_s: r.period_s,
                         ..trackers[s]
                     };
                 }
-                up.or(follow.peak)
+                peak
             } else {
                 let band = match self.seeds[s] {
                     Some(p) => band_bins(p, FOLLOW_WIDTH),
@@ -651,6 +669,51 @@ mod tests {
         assert_eq!(gates[1], 0.0);
     }
 
+    /// The second stage's period after a scan that finds it near a seed
+    /// and one more that follows it, on 4,000 s of `g` with the worm
+    /// tracked at 432 s.
+    fn followed_stage(g: impl Fn(f64) -> f64, seed: f64) -> f64 {
+        use crate::model::spectral::spectrum::Spectrum;
+        let grid = sampled(g, 4000.0);
+        let mut buf = [0.0; crate::model::spectral::fft::FFT_LEN];
+        let spectrum = Spectrum::compute(&grid, &mut buf).unwrap();
+        let worm = spectrum.strongest(0, NYQUIST_BIN, |_| true);
+        let mut trackers = [PeriodTracker::new(432.0); 2];
+        trackers[0].disagreement = 0.0;
+        let mut d: Discovery<2> = Discovery::new([None, Some(seed)]);
+        let span = grid.len() as f64 * CELL_S;
+        d.scan(&spectrum, &mut trackers, worm, span, &Additions::ALL);
+        assert!((trackers[1].period_s - seed).abs() < 1.5, "{trackers:?}");
+        d.scan(&spectrum, &mut trackers, worm, span, &Additions::ALL);
+        trackers[1].period_s
+    }
+
+    #[test]
+    fn a_stage_moves_up_to_its_fundamental() {
+        let pi2 = 2.0 * core::f64::consts::PI;
+        // (worm's second harmonic, stage, stage's second harmonic): C6's
+        // 155 s line carries more than half its harmonic's power, C7's a
+        // quarter.
+        for (h2, fundamental, harmonic, want) in [(6.0, 4.5, 3.6, 155.0), (3.0, 2.4, 4.8, 77.5)] {
+            let g = |t: f64| {
+                9.0 * libm::sin(pi2 * t / 432.0)
+                    + h2 * libm::sin(pi2 * t / 216.0)
+                    + fundamental * libm::sin(pi2 * t / 155.0)
+                    + harmonic * libm::sin(pi2 * t / 77.5)
+            };
+            let got = followed_stage(g, 77.5);
+            assert!((got - want).abs() < 1.5, "{fundamental}: {got}");
+        }
+        // A stage found at its fundamental stays there.
+        let g = |t: f64| {
+            9.0 * libm::sin(pi2 * t / 432.0)
+                + 4.5 * libm::sin(pi2 * t / 155.0)
+                + 3.6 * libm::sin(pi2 * t / 77.5)
+        };
+        let got = followed_stage(g, 155.0);
+        assert!((got - 155.0).abs() < 1.5, "{got}");
+    }
+
     /// The additions as the firmware runs them, but `name` off.
     fn without(name: &str) -> Additions {
         let mut adds = Additions::ALL;
@@ -812,6 +875,19 @@ mod tests {
     }
 
     #[test]
+    fn without_octave_move_a_weak_stage_stays_below_its_energy() {
+        // Its octave (365.7 s) has three times its power, too little to be
+        // a line of its own.
+        let buf = lines(&[(112, 50.0), (56, 150.0)]);
+        let (own, octave) = (bin_period(112.0), bin_period(56.0));
+        assert_eq!(followed(&buf, 0.0, &Additions::ALL), (octave, Some(octave)));
+        assert_eq!(
+            followed(&buf, 0.0, &without("octave_move")),
+            (own, Some(own))
+        );
+    }
+
+    #[test]
     fn without_fundamental_move_a_stage_stays_on_its_harmonic() {
         // A fully gated stage; its fundamental has 3/4 of its power.
         let buf = lines(&[(112, 400.0), (56, 300.0)]);
@@ -824,9 +900,6 @@ mod tests {
             followed(&buf, 0.5, &without("fundamental_move")),
             (own, Some(own))
         );
-        // A weak fundamental (a quarter of the stage's power) stays below.
-        let buf = lines(&[(112, 400.0), (56, 100.0)]);
-        assert_eq!(followed(&buf, 0.5, &Additions::ALL), (own, Some(own)));
     }
 
     #[test]
