@@ -29,6 +29,10 @@ pub struct Additions {
     /// The learner: a feed-forward lasts three of the guider's frames. Off:
     /// one.
     pub feed_forward_horizon: bool,
+    /// The learner: the share of the feed-forward applied, earned against
+    /// a shadow of the guider alone (`mount::guiding::feed_forward_weight`).
+    /// Off: the feed-forward in full.
+    pub feed_forward_weight: bool,
     /// The learner: the share and the pulse weight are saved with the
     /// model and taken back with it. Off: a restored learner starts with
     /// every pulse in full, to earn them again.
@@ -119,6 +123,7 @@ impl Additions {
         earned_share: true,
         trusted_gate: true,
         feed_forward_horizon: true,
+        feed_forward_weight: true,
         saved_share: true,
         calibration_watch: true,
         measured_subset: true,
@@ -138,12 +143,13 @@ impl Additions {
     };
 
     /// Each addition's name, as [`set`](Self::set) takes it.
-    pub const NAMES: [&'static str; 21] = [
+    pub const NAMES: [&'static str; 22] = [
         "bump",
         "pulse_weight",
         "earned_share",
         "trusted_gate",
         "feed_forward_horizon",
+        "feed_forward_weight",
         "saved_share",
         "calibration_watch",
         "measured_subset",
@@ -170,6 +176,7 @@ impl Additions {
             "earned_share" => &mut self.earned_share,
             "trusted_gate" => &mut self.trusted_gate,
             "feed_forward_horizon" => &mut self.feed_forward_horizon,
+            "feed_forward_weight" => &mut self.feed_forward_weight,
             "saved_share" => &mut self.saved_share,
             "calibration_watch" => &mut self.calibration_watch,
             "measured_subset" => &mut self.measured_subset,

@@ -20,6 +20,7 @@ use crate::mount::config::Mount;
 use crate::mount::frame::{FeedForward, Frame, FrameKind, PulseShare};
 use crate::mount::guiding::bump::{self, Bump};
 use crate::mount::guiding::earned_share::{EarnedShare, SavedShare, SAVED_LEN};
+use crate::mount::guiding::feed_forward_weight::FeedForwardWeight;
 use crate::mount::guiding::pulse_weight::PulseWeight;
 
 /// Periodic stages of the firmware's model (the worm and two more), and of
@@ -88,6 +89,7 @@ pub struct Learner<const N: usize> {
     settling: u8,
     share: EarnedShare,
     pulse_weight: PulseWeight,
+    feed_forward_weight: FeedForwardWeight,
     bump: Bump,
     counters: LearnerCounters,
 }
@@ -137,6 +139,7 @@ impl<const N: usize> Learner<N> {
             settling = 0,
             share = EarnedShare::new(mount.config().least_pulse_share),
             pulse_weight = PulseWeight::FULL,
+            feed_forward_weight = FeedForwardWeight::FULL,
             bump = Bump::NONE,
             counters = LearnerCounters::default(),
         })
@@ -170,6 +173,7 @@ impl<const N: usize> Learner<N> {
         self.settling = 0;
         self.share.reset();
         self.pulse_weight = PulseWeight::FULL;
+        self.feed_forward_weight = FeedForwardWeight::FULL;
         self.bump = Bump::NONE;
     }
 
@@ -181,6 +185,11 @@ impl<const N: usize> Learner<N> {
     /// The part of a guide pulse the model learns as gear error (1: all).
     pub fn pulse_weight(&self) -> f32 {
         self.pulse_weight.weight()
+    }
+
+    /// The share of the model's feed-forward applied (1: all).
+    pub fn feed_forward_weight(&self) -> f32 {
+        self.feed_forward_weight.weight()
     }
 
     /// Write the learned model, the pulse share and weight into `out` (at
@@ -241,6 +250,7 @@ impl<const N: usize> Learner<N> {
         self.guider.restore(&snapshot, phase)?;
         self.last_gear_s = None;
         self.settling = 0;
+        self.feed_forward_weight = FeedForwardWeight::FULL;
         if self.guider.config().additions.saved_share {
             self.share.restore(share);
             self.pulse_weight = PulseWeight::restored(share.weight());
@@ -267,9 +277,10 @@ impl<const N: usize> Learner<N> {
         }
     }
 
-    /// The model's feed-forward is trusted in full.
+    /// The model's feed-forward is trusted and applied in full.
     fn trusted(&self) -> bool {
         self.guider.blend_weight() >= TRUSTED_BLEND
+            && self.feed_forward_weight.weight() >= TRUSTED_BLEND as f32
     }
 
     /// The configured worm period, the model's prior (saved with it).
@@ -284,6 +295,7 @@ impl<const N: usize> Learner<N> {
     fn moved(&mut self, t: f64) -> FeedForward {
         self.guider.jumped();
         self.bump.interrupt();
+        self.feed_forward_weight.interrupt();
         if t.is_finite() {
             self.last_gear_s = Some(t);
         }
@@ -372,7 +384,26 @@ impl<const N: usize> Learner<N> {
             step as f32,
         );
         self.count(observation.is_some() && !self.refused_since(faults_before));
-        let rate = change as f64 / (next + d);
+        // The shadow of the guider alone sees what the guider measured (the
+        // pulse in full, less the step the bump took out). It measures the
+        // feed-forward while the pulses were carried out in full: a share
+        // held back is no part of the feed-forward's effect.
+        let pulses_in_full = !adds.earned_share || self.share.fraction() >= 1.0;
+        match sane.filter(|_| !settling) {
+            Some(_) => self.feed_forward_weight.measured(
+                frame.gear_error_arcsec as f64 - level,
+                frame.applied_arcsec as f64 - level,
+                self.guider.config().control_gain as f64,
+                self.guider.blend_weight() > 0.0 && pulses_in_full,
+            ),
+            None => self.feed_forward_weight.interrupt(),
+        }
+        let weight = if adds.feed_forward_weight {
+            self.feed_forward_weight.weight() as f64
+        } else {
+            1.0
+        };
+        let rate = weight * change as f64 / (next + d);
         let rate = if rate.is_finite() { rate as f32 } else { 0.0 };
         self.bump.installed(rate);
         // A guide frame's pulse (0 when the guider sent none); the others

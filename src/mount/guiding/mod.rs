@@ -114,6 +114,7 @@ pub mod bump;
 pub mod calibration;
 pub mod earned_share;
 mod feed_forward;
+pub mod feed_forward_weight;
 mod framer;
 pub mod pulse_weight;
 mod share;
