@@ -43,12 +43,13 @@ use rayon::prelude::*;
 /// The additions the firmware's loop measures: the learner's, the loop's
 /// fast part's, and the model's one that only the learner reads (the
 /// feed-forward at the gear's time). The rest are the model's.
-pub const FIRMWARE_ADDITIONS: [&str; 8] = [
+pub const FIRMWARE_ADDITIONS: [&str; 9] = [
     "bump",
     "pulse_weight",
     "earned_share",
     "trusted_gate",
     "feed_forward_horizon",
+    "feed_forward_weight",
     "saved_share",
     "calibration_watch",
     "grid_lag",
