@@ -388,8 +388,9 @@ impl<const N: usize> Learner<N> {
         // pulse in full, less the step the bump took out). It measures the
         // feed-forward while the pulses were carried out in full: a share
         // held back is no part of the feed-forward's effect.
+        // Off, the weight stays in full.
         let pulses_in_full = !adds.earned_share || self.share.fraction() >= 1.0;
-        match sane.filter(|_| !settling) {
+        match sane.filter(|_| !settling && adds.feed_forward_weight) {
             Some(_) => self.feed_forward_weight.measured(
                 frame.gear_error_arcsec as f64 - level,
                 frame.applied_arcsec as f64 - level,
@@ -398,11 +399,7 @@ impl<const N: usize> Learner<N> {
             ),
             None => self.feed_forward_weight.interrupt(),
         }
-        let weight = if adds.feed_forward_weight {
-            self.feed_forward_weight.weight() as f64
-        } else {
-            1.0
-        };
+        let weight = self.feed_forward_weight.weight() as f64;
         let rate = weight * change as f64 / (next + d);
         let rate = if rate.is_finite() { rate as f32 } else { 0.0 };
         self.bump.installed(rate);
@@ -627,6 +624,50 @@ mod tests {
     /// A learner restored from another's bytes holds the same model and
     /// pulse share; bad bytes, another format and a record learned under
     /// another configured worm period are refused and change nothing.
+    /// A closed loop of `frames` 2 s frames on a worm of 8 arcsec: a
+    /// proportional guider of the assumed aggressiveness, the firmware
+    /// applying `scale` times the feed-forward it is given (a mount that
+    /// moves `scale` times what its configuration says). Returns the
+    /// feed-forward's weight and the RMS of the guider's measured error
+    /// over the last half.
+    fn closed_loop(l: &mut Learner<1>, scale: f64, frames: u32) -> (f32, f64) {
+        let gear = |t: f64| 8.0 * libm::sin(2.0 * core::f64::consts::PI * t / 478.7);
+        let (mut applied, mut rate, mut sum) = (0.0, 0.0, 0.0);
+        for k in 0..frames {
+            let t = 2.0 * k as f64;
+            let pulse = 0.7 * (gear(t) - applied);
+            let ff = l.learn(Frame {
+                gear_error_arcsec: (applied + pulse / 0.7) as f32,
+                applied_arcsec: applied as f32,
+                ..measured(k, 0.0, pulse as f32)
+            });
+            if k >= frames / 2 {
+                sum += (pulse / 0.7) * (pulse / 0.7);
+            }
+            applied += pulse + scale * rate * 2.0;
+            rate = ff.rate_arcsec_per_s as f64;
+        }
+        (
+            l.feed_forward_weight(),
+            libm::sqrt(sum / (frames / 2) as f64),
+        )
+    }
+
+    #[test]
+    fn a_feed_forward_that_overshoots_earns_a_part_and_without_the_weight_keeps_all() {
+        let m = MountConfig::default().validate().unwrap();
+        let mut right: std::boxed::Box<Learner<1>> = std::boxed::Box::new(Learner::new(&m));
+        let (weight, good) = closed_loop(&mut right, 1.0, 3000);
+        assert_eq!(weight, 1.0);
+        let mut over: std::boxed::Box<Learner<1>> = std::boxed::Box::new(Learner::new(&m));
+        let (weight, held) = closed_loop(&mut over, 3.0, 3000);
+        assert!((weight - 1.0 / 3.0).abs() < 0.1, "{weight}");
+        let mut off = without("feed_forward_weight");
+        let (weight, left) = closed_loop(&mut off, 3.0, 3000);
+        assert_eq!(weight, 1.0);
+        assert!(held < left, "{good} {held} {left}");
+    }
+
     #[test]
     fn restore_takes_the_model_back_and_refuses_bad_bytes() {
         let m = MountConfig::default().validate().unwrap();

@@ -582,10 +582,11 @@ impl Session {
 
     fn start(&mut self, spec: Section) {
         let now = self.rig.now_us;
-        self.cadence_us = us(spec.interval_s);
+        // The pause closes with the cadence the guider had when it stopped.
         if let Some(from) = self.off_since_us.take() {
             self.window(Activity::GuiderOff, from);
         }
+        self.cadence_us = us(spec.interval_s);
         let index = self.sections.len();
         self.rig.start_guider(guider_for(&spec), spec.interval_s);
         let key = (2 << 60) | index as u64;

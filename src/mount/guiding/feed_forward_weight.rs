@@ -28,9 +28,10 @@ const WINDOW_FRAMES: f64 = 1000.0;
 /// Frames with a feed-forward scored before the weight moves.
 const MIN_SCORED: f64 = 200.0;
 /// The gain in mean square, as a fraction of the guider alone's, below
-/// which the feed-forward stays in full: the shadow of a proportional loop
-/// measures a guider with its hysteresis and min move within about 2.5 %
-/// RMS (docs/model.md).
+/// which the feed-forward stays in full: the shadow, a proportional loop,
+/// measures a guider with hysteresis and a min move a little better than it
+/// is, and a smaller gain is within that error (without it the noisy cases
+/// lost to a weight a little below 1).
 const MARGIN: f64 = 0.05;
 /// Largest change of the weight per frame: from full to none in 100 frames.
 const STEP: f32 = 0.01;
