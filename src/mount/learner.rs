@@ -55,6 +55,11 @@ pub const WORM_PERIOD_CHANGE: f32 = 0.01;
 // record: `persist`).
 const _: () = assert!(FIRMWARE_STAGES <= SNAPSHOT_MAX_STAGES);
 
+/// How far a stage's period moves, as a fraction of it, before the
+/// feed-forward counts as another model's: a stage moving to another line,
+/// not its tracker following one.
+const STAGE_MOVE: f64 = 0.05;
+
 /// The model's blend weight from which its feed-forward counts as trusted
 /// in full, and the pulse share may be earned.
 const TRUSTED_BLEND: f64 = 0.9;
@@ -90,6 +95,9 @@ pub struct Learner<const N: usize> {
     share: EarnedShare,
     pulse_weight: PulseWeight,
     feed_forward_weight: FeedForwardWeight,
+    /// The model's stage periods when the feed-forward's weight was last
+    /// measured from full (NaN: a stage not found).
+    weighed_periods: [f64; N],
     bump: Bump,
     counters: LearnerCounters,
 }
@@ -140,6 +148,7 @@ impl<const N: usize> Learner<N> {
             share = EarnedShare::new(mount.config().least_pulse_share),
             pulse_weight = PulseWeight::FULL,
             feed_forward_weight = FeedForwardWeight::FULL,
+            weighed_periods = [f64::NAN; N],
             bump = Bump::NONE,
             counters = LearnerCounters::default(),
         })
@@ -174,6 +183,7 @@ impl<const N: usize> Learner<N> {
         self.share.reset();
         self.pulse_weight = PulseWeight::FULL;
         self.feed_forward_weight = FeedForwardWeight::FULL;
+        self.weighed_periods = [f64::NAN; N];
         self.bump = Bump::NONE;
     }
 
@@ -251,6 +261,7 @@ impl<const N: usize> Learner<N> {
         self.last_gear_s = None;
         self.settling = 0;
         self.feed_forward_weight = FeedForwardWeight::FULL;
+        self.weighed_periods = [f64::NAN; N];
         if self.guider.config().additions.saved_share {
             self.share.restore(share);
             self.pulse_weight = PulseWeight::restored(share.weight());
@@ -281,6 +292,24 @@ impl<const N: usize> Learner<N> {
     fn trusted(&self) -> bool {
         self.guider.blend_weight() >= TRUSTED_BLEND
             && self.feed_forward_weight.weight() >= TRUSTED_BLEND as f32
+    }
+
+    /// Whether a stage was found, given up or moved by more than
+    /// [`STAGE_MOVE`] since the periods were last noted; notes them if so.
+    fn stages_changed(&mut self) -> bool {
+        let mut changed = false;
+        for (i, noted) in self.weighed_periods.iter_mut().enumerate() {
+            let p = self.guider.period_s(i);
+            let moved = match (p.is_finite(), noted.is_finite()) {
+                (true, true) => (p - *noted).abs() > STAGE_MOVE * *noted,
+                (a, b) => a != b,
+            };
+            if moved {
+                *noted = p;
+                changed = true;
+            }
+        }
+        changed
     }
 
     /// The configured worm period, the model's prior (saved with it).
@@ -388,6 +417,10 @@ impl<const N: usize> Learner<N> {
         // pulse in full, less the step the bump took out). It measures the
         // feed-forward while the pulses were carried out in full: a share
         // held back is no part of the feed-forward's effect.
+        // A model whose stages changed predicts another feed-forward.
+        if self.stages_changed() {
+            self.feed_forward_weight.remeasure();
+        }
         // Off, the weight stays in full.
         let pulses_in_full = !adds.earned_share || self.share.fraction() >= 1.0;
         match sane.filter(|_| !settling && adds.feed_forward_weight) {

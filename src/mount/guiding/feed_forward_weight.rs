@@ -72,6 +72,15 @@ impl FeedForwardWeight {
         self.weight
     }
 
+    /// The model changed (a stage found, given up or moved): its
+    /// feed-forward is another, measured again from full.
+    pub fn remeasure(&mut self) {
+        *self = FeedForwardWeight {
+            shadow_applied: self.shadow_applied,
+            ..Self::FULL
+        };
+    }
+
     /// A frame that is no measurement of the loop (unmeasured, a dither or
     /// its settling, a calibration, a slew, a refused observation): the
     /// shadow starts again from the real loop's state.
