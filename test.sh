@@ -38,8 +38,9 @@ CHIPS=(stm32f411ce stm32f446re stm32f407vg)
 # A ratchet inside the code region of memory.x (256 KiB, sectors 0-5;
 # sectors 6-7 are storage), lowered as the build shrinks: 223,264 B after
 # issue 29's first step, whose goal is 200 KiB (docs/decisions.md, "Flash:
-# what costs the most").
-F411_FLASH_MAX=$((219 * 1024))
+# what costs the most"); raised from 219 KiB by the feed-forward's weight
+# (about 1 KB).
+F411_FLASH_MAX=$((220 * 1024))
 F411_RAM_MAX=$((96 * 1024))
 # Panic call sites in the F411 release ELF: a ratchet, lowered as they go.
 # None are the model's, the loop's or the port's: no_panic proves those

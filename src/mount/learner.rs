@@ -58,7 +58,7 @@ const _: () = assert!(FIRMWARE_STAGES <= SNAPSHOT_MAX_STAGES);
 /// How far a stage's period moves, as a fraction of it, before the
 /// feed-forward counts as another model's: a stage moving to another line,
 /// not its tracker following one.
-const STAGE_MOVE: f64 = 0.05;
+const STAGE_MOVE: f32 = 0.05;
 
 /// The model's blend weight from which its feed-forward counts as trusted
 /// in full, and the pulse share may be earned.
@@ -97,7 +97,7 @@ pub struct Learner<const N: usize> {
     feed_forward_weight: FeedForwardWeight,
     /// The model's stage periods when the feed-forward's weight was last
     /// measured from full (NaN: a stage not found).
-    weighed_periods: [f64; N],
+    weighed_periods: [f32; N],
     bump: Bump,
     counters: LearnerCounters,
 }
@@ -148,7 +148,7 @@ impl<const N: usize> Learner<N> {
             share = EarnedShare::new(mount.config().least_pulse_share),
             pulse_weight = PulseWeight::FULL,
             feed_forward_weight = FeedForwardWeight::FULL,
-            weighed_periods = [f64::NAN; N],
+            weighed_periods = [f32::NAN; N],
             bump = Bump::NONE,
             counters = LearnerCounters::default(),
         })
@@ -183,7 +183,7 @@ impl<const N: usize> Learner<N> {
         self.share.reset();
         self.pulse_weight = PulseWeight::FULL;
         self.feed_forward_weight = FeedForwardWeight::FULL;
-        self.weighed_periods = [f64::NAN; N];
+        self.weighed_periods = [f32::NAN; N];
         self.bump = Bump::NONE;
     }
 
@@ -261,7 +261,7 @@ impl<const N: usize> Learner<N> {
         self.last_gear_s = None;
         self.settling = 0;
         self.feed_forward_weight = FeedForwardWeight::FULL;
-        self.weighed_periods = [f64::NAN; N];
+        self.weighed_periods = [f32::NAN; N];
         if self.guider.config().additions.saved_share {
             self.share.restore(share);
             self.pulse_weight = PulseWeight::restored(share.weight());
@@ -299,7 +299,7 @@ impl<const N: usize> Learner<N> {
     fn stages_changed(&mut self) -> bool {
         let mut changed = false;
         for (i, noted) in self.weighed_periods.iter_mut().enumerate() {
-            let p = self.guider.period_s(i);
+            let p = self.guider.period_s(i) as f32;
             let moved = match (p.is_finite(), noted.is_finite()) {
                 (true, true) => (p - *noted).abs() > STAGE_MOVE * *noted,
                 (a, b) => a != b,
@@ -425,9 +425,9 @@ impl<const N: usize> Learner<N> {
         let pulses_in_full = !adds.earned_share || self.share.fraction() >= 1.0;
         match sane.filter(|_| !settling && adds.feed_forward_weight) {
             Some(_) => self.feed_forward_weight.measured(
-                frame.gear_error_arcsec as f64 - level,
-                frame.applied_arcsec as f64 - level,
-                self.guider.config().control_gain as f64,
+                frame.gear_error_arcsec - level as f32,
+                frame.applied_arcsec - level as f32,
+                self.guider.config().control_gain,
                 self.guider.blend_weight() > 0.0 && pulses_in_full,
             ),
             None => self.feed_forward_weight.interrupt(),

@@ -24,15 +24,15 @@
 use crate::model::numeric::clamp;
 
 /// Frames the running means average over (about 30 minutes at 2 s).
-const WINDOW_FRAMES: f64 = 1000.0;
+const WINDOW_FRAMES: f32 = 1000.0;
 /// Frames with a feed-forward scored before the weight moves.
-const MIN_SCORED: f64 = 200.0;
+const MIN_SCORED: f32 = 200.0;
 /// The gain in mean square, as a fraction of the guider alone's, below
 /// which the feed-forward stays in full: the shadow, a proportional loop,
 /// measures a guider with hysteresis and a min move a little better than it
 /// is, and a smaller gain is within that error (without it the noisy cases
 /// lost to a weight a little below 1).
-const MARGIN: f64 = 0.05;
+const MARGIN: f32 = 0.05;
 /// Largest change of the weight per frame: from full to none in 100 frames.
 const STEP: f32 = 0.01;
 /// The least weight at which the feed-forward's effect is measured: below
@@ -44,12 +44,12 @@ pub const PROBE: f32 = 0.1;
 pub struct FeedForwardWeight {
     /// The shadow's correction so far (None: taken from the real loop at
     /// the next measured frame).
-    shadow_applied: Option<f64>,
+    shadow_applied: Option<f32>,
     /// Running means of `e_A h`, `h^2` and `e_A^2`.
-    cross: f64,
-    power: f64,
-    shadow_square: f64,
-    scored: f64,
+    cross: f32,
+    power: f32,
+    shadow_square: f32,
+    scored: f32,
     /// Where the weight moves: the best share last measured.
     target: f32,
     weight: f32,
@@ -92,7 +92,7 @@ impl FeedForwardWeight {
     /// the firmware's correction (so the guider measured `gear - applied`),
     /// `gain` the guider's assumed aggressiveness, `feeding` whether a
     /// feed-forward was in effect. Moves the weight.
-    pub fn measured(&mut self, gear: f64, applied: f64, gain: f64, feeding: bool) {
+    pub fn measured(&mut self, gear: f32, applied: f32, gain: f32, feeding: bool) {
         let shadow = *self.shadow_applied.get_or_insert(applied);
         let (e, e_a) = (gear - applied, gear - shadow);
         if !(e.is_finite() && e_a.is_finite() && gain.is_finite()) {
@@ -104,7 +104,7 @@ impl FeedForwardWeight {
             return;
         }
         if self.weight >= PROBE {
-            let h = (e_a - e) / self.weight as f64;
+            let h = (e_a - e) / self.weight;
             self.scored += 1.0;
             let n = self.scored.min(WINDOW_FRAMES);
             self.cross += (e_a * h - self.cross) / n;
@@ -118,10 +118,10 @@ impl FeedForwardWeight {
                 let better_by = self.power * (1.0 - best) * (1.0 - best);
                 self.target = if better_by <= MARGIN * self.shadow_square {
                     1.0
-                } else if best < PROBE as f64 {
+                } else if best < PROBE {
                     0.0
                 } else {
-                    best as f32
+                    best
                 };
             }
         }
@@ -139,8 +139,8 @@ mod tests {
     /// `ff(k)` at the earned weight of the feed-forward; returns the state
     /// after `frames`.
     fn run(
-        gear: impl Fn(usize) -> f64,
-        ff: impl Fn(usize) -> f64,
+        gear: impl Fn(usize) -> f32,
+        ff: impl Fn(usize) -> f32,
         frames: usize,
     ) -> FeedForwardWeight {
         let gain = 0.7;
@@ -150,7 +150,7 @@ mod tests {
             let g = gear(k);
             fw.measured(g, applied, gain, true);
             let e = g - applied;
-            applied += gain * e + fw.weight() as f64 * ff(k);
+            applied += gain * e + fw.weight() * ff(k);
         }
         fw
     }
@@ -158,7 +158,7 @@ mod tests {
     #[test]
     fn a_feed_forward_that_predicts_the_gear_keeps_its_weight() {
         // The gear rises 0.1 per frame; the feed-forward adds that.
-        let fw = run(|k| 0.1 * k as f64, |_| 0.1, 2000);
+        let fw = run(|k| 0.1 * k as f32, |_| 0.1, 2000);
         assert_eq!(fw.weight(), 1.0);
     }
 
@@ -175,8 +175,8 @@ mod tests {
         // The feed-forward predicts twice the gear's rise: the best share
         // of it is a half.
         let fw = run(
-            |k| (k as f64 * 0.05).sin() * 5.0,
-            |k| 2.0 * 5.0 * (((k + 1) as f64 * 0.05).sin() - (k as f64 * 0.05).sin()),
+            |k| (k as f32 * 0.05).sin() * 5.0,
+            |k| 2.0 * 5.0 * (((k + 1) as f32 * 0.05).sin() - (k as f32 * 0.05).sin()),
             3000,
         );
         assert!((fw.weight() - 0.5).abs() < 0.05, "{}", fw.weight());
@@ -187,8 +187,8 @@ mod tests {
         // The feed-forward predicts 1.2 times the gear's rise: a sixth less
         // of it would be best, but gains less than the margin.
         let fw = run(
-            |k| (k as f64 * 0.05).sin() * 5.0,
-            |k| 1.2 * 5.0 * (((k + 1) as f64 * 0.05).sin() - (k as f64 * 0.05).sin()),
+            |k| (k as f32 * 0.05).sin() * 5.0,
+            |k| 1.2 * 5.0 * (((k + 1) as f32 * 0.05).sin() - (k as f32 * 0.05).sin()),
             3000,
         );
         assert_eq!(fw.weight(), 1.0);
@@ -210,8 +210,8 @@ mod tests {
     #[test]
     fn bad_input_restarts_the_shadow_and_leaves_the_weight() {
         let mut fw = FeedForwardWeight::FULL;
-        fw.measured(f64::NAN, 0.0, 0.7, true);
-        fw.measured(1.0, f64::INFINITY, 0.7, true);
+        fw.measured(f32::NAN, 0.0, 0.7, true);
+        fw.measured(1.0, f32::INFINITY, 0.7, true);
         assert_eq!(fw, FeedForwardWeight::FULL);
     }
 }
