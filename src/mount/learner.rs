@@ -182,8 +182,7 @@ impl<const N: usize> Learner<N> {
         self.settling = 0;
         self.share.reset();
         self.pulse_weight = PulseWeight::FULL;
-        self.feed_forward_weight = FeedForwardWeight::FULL;
-        self.weighed_periods = [f32::NAN; N];
+        self.weigh_from_full();
         self.bump = Bump::NONE;
     }
 
@@ -260,8 +259,7 @@ impl<const N: usize> Learner<N> {
         self.guider.restore(&snapshot, phase)?;
         self.last_gear_s = None;
         self.settling = 0;
-        self.feed_forward_weight = FeedForwardWeight::FULL;
-        self.weighed_periods = [f32::NAN; N];
+        self.weigh_from_full();
         if self.guider.config().additions.saved_share {
             self.share.restore(share);
             self.pulse_weight = PulseWeight::restored(share.weight());
@@ -292,6 +290,13 @@ impl<const N: usize> Learner<N> {
     fn trusted(&self) -> bool {
         self.guider.blend_weight() >= TRUSTED_BLEND
             && self.feed_forward_weight.weight() >= TRUSTED_BLEND as f32
+    }
+
+    /// A new model (a reset, a restore): its feed-forward in full until
+    /// measured.
+    fn weigh_from_full(&mut self) {
+        self.feed_forward_weight = FeedForwardWeight::FULL;
+        self.weighed_periods = [f32::NAN; N];
     }
 
     /// Whether a stage was found, given up or moved by more than
@@ -413,15 +418,15 @@ impl<const N: usize> Learner<N> {
             step as f32,
         );
         self.count(observation.is_some() && !self.refused_since(faults_before));
-        // The shadow of the guider alone sees what the guider measured (the
-        // pulse in full, less the step the bump took out). It measures the
-        // feed-forward while the pulses were carried out in full: a share
-        // held back is no part of the feed-forward's effect.
         // A model whose stages changed predicts another feed-forward.
         if self.stages_changed() {
             self.feed_forward_weight.remeasure();
         }
-        // Off, the weight stays in full.
+        // The shadow of the guider alone sees what the guider measured (the
+        // pulse in full, less the step the bump took out). It measures the
+        // feed-forward while the pulses were carried out in full: a share
+        // held back is no part of the feed-forward's effect. Off, the weight
+        // stays in full.
         let pulses_in_full = !adds.earned_share || self.share.fraction() >= 1.0;
         match sane.filter(|_| !settling && adds.feed_forward_weight) {
             Some(_) => self.feed_forward_weight.measured(
@@ -654,9 +659,6 @@ mod tests {
         assert_eq!(restored(Some("saved_share")), (1.0, 1.0));
     }
 
-    /// A learner restored from another's bytes holds the same model and
-    /// pulse share; bad bytes, another format and a record learned under
-    /// another configured worm period are refused and change nothing.
     /// A closed loop of `frames` 2 s frames on a worm of 8 arcsec: a
     /// proportional guider of the assumed aggressiveness, the firmware
     /// applying `scale` times the feed-forward it is given (a mount that
@@ -701,6 +703,9 @@ mod tests {
         assert!(held < left, "{good} {held} {left}");
     }
 
+    /// A learner restored from another's bytes holds the same model and
+    /// pulse share; bad bytes, another format and a record learned under
+    /// another configured worm period are refused and change nothing.
     #[test]
     fn restore_takes_the_model_back_and_refuses_bad_bytes() {
         let m = MountConfig::default().validate().unwrap();

@@ -170,15 +170,18 @@ mod tests {
         assert_eq!(fw.weight(), 0.0);
     }
 
+    /// [`run`] on a sine of 5 arcsec, the feed-forward predicting `scale`
+    /// times its change to the next frame.
+    fn sine(scale: f32) -> FeedForwardWeight {
+        let gear = |k: usize| (k as f32 * 0.05).sin() * 5.0;
+        run(gear, |k| scale * (gear(k + 1) - gear(k)), 3000)
+    }
+
     #[test]
     fn half_a_feed_forward_earns_half() {
         // The feed-forward predicts twice the gear's rise: the best share
         // of it is a half.
-        let fw = run(
-            |k| (k as f32 * 0.05).sin() * 5.0,
-            |k| 2.0 * 5.0 * (((k + 1) as f32 * 0.05).sin() - (k as f32 * 0.05).sin()),
-            3000,
-        );
+        let fw = sine(2.0);
         assert!((fw.weight() - 0.5).abs() < 0.05, "{}", fw.weight());
     }
 
@@ -186,12 +189,7 @@ mod tests {
     fn a_share_that_would_gain_little_keeps_the_feed_forward_in_full() {
         // The feed-forward predicts 1.2 times the gear's rise: a sixth less
         // of it would be best, but gains less than the margin.
-        let fw = run(
-            |k| (k as f32 * 0.05).sin() * 5.0,
-            |k| 1.2 * 5.0 * (((k + 1) as f32 * 0.05).sin() - (k as f32 * 0.05).sin()),
-            3000,
-        );
-        assert_eq!(fw.weight(), 1.0);
+        assert_eq!(sine(1.2).weight(), 1.0);
     }
 
     #[test]
