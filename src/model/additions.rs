@@ -89,14 +89,15 @@ pub struct Additions {
     /// band, as when it was found, and never moves to an octave.
     pub follow_band: bool,
     /// The guider: with more than one stage, the reference blend is
-    /// weighted by the trust the model earns in two shadow loops, the
-    /// model's against the hysteresis alone (`model::guider::trust`). Off:
-    /// the reference blend as it is (INDIGO's).
+    /// weighted by the trust the model earns in shadow loops, the model's
+    /// against the reactive law alone (`model::guider::trust`). Off: the
+    /// reference blend as it is (INDIGO's).
     pub trust_shadows: bool,
-    /// The guider: with more than one stage, two more shadows choose the
-    /// reactive law, proportional control in place of the hysteresis term
-    /// while it is measured better (`model::guider::trust`). Off: the
-    /// reference's hysteresis term always.
+    /// The guider: with more than one stage, shadows of the two reactive
+    /// laws choose between them, proportional control in place of the
+    /// hysteresis term while it is measured better, and the model's trust
+    /// is measured against the better (`model::guider::trust`). Off: the
+    /// reference's hysteresis term always, and the trust against it.
     pub law_choice: bool,
     /// The guider: the mount's feed-forward reads the model the grid's lag
     /// later, where the gear error's own time lies

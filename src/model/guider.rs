@@ -29,10 +29,12 @@ use crate::model::spectral::spectrum::{Spectrum, NYQUIST_BIN};
 
 mod control_law;
 mod restore;
+pub mod stage_watch;
 mod trust;
 
 use control_law::Law;
 use restore::{Fit, Restore, Stages};
+use stage_watch::StageWatch;
 use trust::Trust;
 
 /// Frames of proportional control without learning after a dither.
@@ -198,6 +200,9 @@ pub struct Guider<S: Scalar, const N: usize = 2> {
     /// With more than one stage, the weight of the reference blend as the
     /// model has earned it by measurement (`trust`).
     trust: Trust,
+    /// The stages the trust's score measured: a model whose stages change
+    /// is scored again.
+    trusted_stages: StageWatch<N>,
     faults: Faults,
     /// What a restore (or a jump of the clock) leaves waiting for the new
     /// data: the first frame, the phase search, the held spectrum.
@@ -263,6 +268,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             learning_progress = 0.0,
             blend = 0.0,
             trust = Trust::new(),
+            trusted_stages = StageWatch::NEW,
             faults = Faults::default(),
             restore in Restore::init,
         })
@@ -307,6 +313,11 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     /// Tracked period of a stage, seconds (NaN for a stage not found yet).
     pub fn period_s(&self, stage: usize) -> f64 {
         self.trackers.get(stage).map_or(f64::NAN, |t| t.period_s)
+    }
+
+    /// Tracked periods of all stages, seconds.
+    pub fn periods_s(&self) -> [f64; N] {
+        self.trackers.map(|t| t.period_s)
     }
 
     /// Evidence gate of a stage, 0..=1 (the worm's is 1).
@@ -369,6 +380,9 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         let law = self.law();
         let (timestamp, prediction) = self.model_step(time_s, time_step);
         if N > 1 {
+            if self.trusted_stages.changed(self.periods_s()) {
+                self.trust.rescore();
+            }
             let weight = self.trust.measured(
                 gear,
                 &law.to_f64(),

@@ -10,6 +10,7 @@
 use core::mem::MaybeUninit;
 
 use crate::model::additions::Additions;
+use crate::model::guider::stage_watch::StageWatch;
 use crate::model::guider::{Faults, Guider, GuiderConfig, DITHER_FRAMES, MAX_TIME_STEP_S};
 use crate::model::in_place::{build, init_fields};
 use crate::model::numeric::clamp;
@@ -55,11 +56,6 @@ pub const WORM_PERIOD_CHANGE: f32 = 0.01;
 // record: `persist`).
 const _: () = assert!(FIRMWARE_STAGES <= SNAPSHOT_MAX_STAGES);
 
-/// How far a stage's period moves, as a fraction of it, before the
-/// feed-forward counts as another model's: a stage moving to another line,
-/// not its tracker following one.
-const STAGE_MOVE: f32 = 0.05;
-
 /// The model's blend weight from which its feed-forward counts as trusted
 /// in full, and the pulse share may be earned.
 const TRUSTED_BLEND: f64 = 0.9;
@@ -95,9 +91,9 @@ pub struct Learner<const N: usize> {
     share: EarnedShare,
     pulse_weight: PulseWeight,
     feed_forward_weight: FeedForwardWeight,
-    /// The model's stage periods when the feed-forward's weight was last
-    /// measured from full (NaN: a stage not found).
-    weighed_periods: [f32; N],
+    /// The model's stages when the feed-forward's weight was last measured
+    /// from full.
+    weighed_stages: StageWatch<N>,
     bump: Bump,
     counters: LearnerCounters,
 }
@@ -148,7 +144,7 @@ impl<const N: usize> Learner<N> {
             share = EarnedShare::new(mount.config().least_pulse_share),
             pulse_weight = PulseWeight::FULL,
             feed_forward_weight = FeedForwardWeight::FULL,
-            weighed_periods = [f32::NAN; N],
+            weighed_stages = StageWatch::NEW,
             bump = Bump::NONE,
             counters = LearnerCounters::default(),
         })
@@ -296,25 +292,7 @@ impl<const N: usize> Learner<N> {
     /// measured.
     fn weigh_from_full(&mut self) {
         self.feed_forward_weight = FeedForwardWeight::FULL;
-        self.weighed_periods = [f32::NAN; N];
-    }
-
-    /// Whether a stage was found, given up or moved by more than
-    /// [`STAGE_MOVE`] since the periods were last noted; notes them if so.
-    fn stages_changed(&mut self) -> bool {
-        let mut changed = false;
-        for (i, noted) in self.weighed_periods.iter_mut().enumerate() {
-            let p = self.guider.period_s(i) as f32;
-            let moved = match (p.is_finite(), noted.is_finite()) {
-                (true, true) => (p - *noted).abs() > STAGE_MOVE * *noted,
-                (a, b) => a != b,
-            };
-            if moved {
-                *noted = p;
-                changed = true;
-            }
-        }
-        changed
+        self.weighed_stages = StageWatch::NEW;
     }
 
     /// The configured worm period, the model's prior (saved with it).
@@ -419,7 +397,7 @@ impl<const N: usize> Learner<N> {
         );
         self.count(observation.is_some() && !self.refused_since(faults_before));
         // A model whose stages changed predicts another feed-forward.
-        if self.stages_changed() {
+        if self.weighed_stages.changed(self.guider.periods_s()) {
             self.feed_forward_weight.remeasure();
         }
         // The shadow of the guider alone sees what the guider measured (the

@@ -7,34 +7,39 @@
 //! prediction) then passes more noise than the hysteresis it replaces, and
 //! gains less than that from the prediction.
 //!
-//! So the guider runs two shadow loops on the gear error it reconstructs
-//! (the sum of its controls plus the measured error, i.e. the true gear
-//! error plus this frame's noise): one with the hysteresis control alone,
-//! one with the reference blend. Each shadow sees what the guider would have
+//! So the guider runs shadow loops on the gear error it reconstructs (the
+//! sum of its controls plus the measured error, i.e. the true gear error
+//! plus this frame's noise): two with a reactive law alone, the reference's
+//! hysteresis term and proportional control, and one with the guider's law
+//! under the reference blend. Each shadow sees what the guider would have
 //! measured under its own control, with the same noise; the mean square of
-//! a shadow's measurements is its residual's plus the noise's, so the two
-//! compare causally and paired, frame by frame. The weight the guider gives
-//! the reference blend rises while the model's shadow is measured better by
-//! a margin, falls while it is measured worse, and holds between.
+//! a shadow's measurements is its residual's plus the noise's, so they
+//! compare causally and paired, frame by frame.
 //!
-//! The reactive term itself is chosen the same way. The reference's
-//! hysteresis term (a tenth of the control two frames back) lowers the
-//! effective gain and adds momentum; on some guide logs proportional
-//! control is better (PHD2's own GP test uses it, docs/model.md). Two more
-//! shadows run the guider's law, under the reference blend, with the
-//! hysteresis term and with proportional control in its place, from the
-//! first frame; the guider uses proportional control while that shadow is
+//! The reactive term is chosen from the two reactive shadows: the
+//! reference's hysteresis term (a tenth of the control two frames back)
+//! lowers the effective gain and adds momentum; on some guide logs
+//! proportional control is better (PHD2's own GP test uses it,
+//! docs/model.md). The guider uses proportional control while its shadow is
 //! measured better by a margin, and goes back when it is measured worse.
+//!
+//! The weight the guider gives the reference blend rises while the model's
+//! shadow is measured better than the better reactive one by a margin,
+//! falls while it is measured worse, and holds between. When the model's
+//! stages change (a stage found, given up or moved to another line) what
+//! was scored measured another model: it counts from then on as a short
+//! score, so that an old lead does not carry a worse model for long.
 
 use super::control_law::Law;
 use super::HYSTERESIS;
 use crate::model::additions::Additions;
 
-/// Frames a mean square averages over (about 7 minutes at 2 s frames; a
-/// worm period or more of a modest worm, so that its slopes both ways count).
+/// Frames a mean square averages over (about half an hour at 2 s frames; a
+/// worm period or more of a modest worm, so that its slopes both ways
+/// count).
 const SCORE_FRAMES: f64 = 1000.0;
 /// Weight gained per frame while the model's shadow is better by
-/// [`MARGIN`]: from none to full in 100 frames.
+/// [`MARGIN`]: from none to full in 10 frames.
 const RISE_PER_FRAME: f64 = 0.1;
 /// Weight lost per frame while the model's shadow is worse: a model that
 /// stops helping loses its weight faster than it earned it.
@@ -62,16 +67,15 @@ struct Shadow {
     /// Its last two controls, newest first (the hysteresis term reads the
     /// older, as the guider's).
     controls: [f64; 2],
-    /// Running mean square of its measurements.
-    mean_square: f64,
 }
 
 impl Shadow {
     /// One frame: its measurement of `gear`, and its control under `law`
-    /// with the reference blend `blend` of `prediction` (none: hysteresis).
+    /// with the reference blend `blend` of `prediction` (none: the reactive
+    /// law alone).
     fn step(&mut self, gear: f64, law: &Law<f64>, prediction: Option<(f64, f64)>) -> f64 {
         let input = gear - self.applied;
-        // No prediction: the hysteresis term alone (a blend of 0).
+        // No prediction: the reactive law alone (a blend of 0).
         let prediction = prediction.or(Some((0.0, 0.0)));
         let mut control = law.control(input, self.controls[1], prediction);
         if !control.is_finite() {
@@ -81,31 +85,45 @@ impl Shadow {
         self.controls = [control, self.controls[0]];
         input
     }
+}
 
-    /// Add a measurement to the mean square, the `frames`th scored.
-    fn score(&mut self, input: f64, frames: f64) {
-        self.mean_square += (input * input - self.mean_square) / frames.min(SCORE_FRAMES);
+/// A running mean square of a shadow's measurements.
+#[derive(Clone, Copy, Debug, Default)]
+struct MeanSquare(f64);
+
+impl MeanSquare {
+    /// Add a measurement, the `frames`th scored.
+    fn add(&mut self, input: f64, frames: f64) {
+        self.0 += (input * input - self.0) / frames.min(SCORE_FRAMES);
     }
 }
 
-/// The measured trust in the reference blend, 0..=1, and the two shadows
-/// that measure it.
+/// The measured trust in the reference blend, 0..=1, the reactive law, and
+/// the shadows that measure them.
 #[derive(Clone, Copy, Debug, Default)]
 pub(super) struct Trust {
-    reactive: Shadow,
-    model: Shadow,
-    /// Frames scored: those where the model's shadow differed from the
-    /// reactive one (until then both score the same, which would only
-    /// dilute the comparison).
-    scored: f64,
-    weight: f64,
-    /// The guider's law under the reference blend, with the hysteresis term
-    /// and with proportional control in its place.
+    /// The reactive laws alone: with the hysteresis term, and with
+    /// proportional control in its place.
     hysteretic: Shadow,
     proportional: Shadow,
-    /// Frames the two have scored (every frame with a measurement).
+    /// The guider's law under the reference blend.
+    model: Shadow,
+    /// The two reactive laws' mean squares, from the first frame, and the
+    /// frames they have scored.
+    law_scores: [MeanSquare; 2],
     law_scored: f64,
     use_proportional: bool,
+    /// The mean squares of the model's shadow and of the two reactive
+    /// ones over the frames where the model's shadow differed from the
+    /// reactive ones (until then all score the same, which would only
+    /// dilute the comparison), and how many they count as ([`rescore`]
+    /// cuts it).
+    ///
+    /// [`rescore`]: Trust::rescore
+    model_score: MeanSquare,
+    reactive_scores: [MeanSquare; 2],
+    scored: f64,
+    weight: f64,
 }
 
 impl Trust {
@@ -131,7 +149,7 @@ impl Trust {
         prediction: Option<(f64, f64)>,
         adds: &Additions,
     ) -> f64 {
-        let weight = self.score(gear, law, prediction);
+        let weight = self.score(gear, law, prediction, adds);
         if adds.trust_shadows {
             weight
         } else {
@@ -139,10 +157,25 @@ impl Trust {
         }
     }
 
-    /// Run the shadows one frame and move the weight; returns it.
-    fn score(&mut self, gear: f64, law: &Law<f64>, prediction: Option<(f64, f64)>) -> f64 {
-        let reactive = self.reactive.step(gear, law, None);
-        let model = self.model.step(gear, law, prediction);
+    /// The model's stages changed: what was scored measured another model,
+    /// and counts from now on as [`MIN_SCORED`] frames, no more (the new
+    /// model's frames weigh a 200th at first, not a 1000th). Nothing is
+    /// held: a model whose new stages are worse loses its old lead within
+    /// about as many frames. Starting the score afresh held the weight for
+    /// those frames, and cost the short PHD2 logs (02: 0.26 -> 0.17 %).
+    pub fn rescore(&mut self) {
+        self.scored = self.scored.min(MIN_SCORED);
+    }
+
+    /// Run the shadows one frame, choose the law and move the weight;
+    /// returns it.
+    fn score(
+        &mut self,
+        gear: f64,
+        law: &Law<f64>,
+        prediction: Option<(f64, f64)>,
+        adds: &Additions,
+    ) -> f64 {
         let hysteretic = Law {
             hysteresis: HYSTERESIS,
             ..*law
@@ -151,33 +184,34 @@ impl Trust {
             hysteresis: 0.0,
             ..*law
         };
-        let with_hysteresis = self.hysteretic.step(gear, &hysteretic, prediction);
-        // Without a prediction the shadow's law is the reactive term alone
-        // (a blend of 0), here proportional control.
-        let without = self.proportional.step(gear, &proportional, prediction);
-        if !(gear.is_finite()
-            && reactive.is_finite()
-            && model.is_finite()
-            && with_hysteresis.is_finite()
-            && without.is_finite())
-        {
+        let reactive = [
+            self.hysteretic.step(gear, &hysteretic, None),
+            self.proportional.step(gear, &proportional, None),
+        ];
+        let model = self.model.step(gear, law, prediction);
+        if !(gear.is_finite() && reactive.iter().all(|r| r.is_finite()) && model.is_finite()) {
             *self = Self {
                 weight: 0.0,
                 ..Self::default()
             };
             return 0.0;
         }
-        self.choose_law(with_hysteresis, without);
+        self.choose_law(reactive);
         if prediction.is_none_or(|(_, blend)| !(blend > 0.0)) {
             return self.weight;
         }
         self.scored += 1.0;
-        self.reactive.score(reactive, self.scored);
-        self.model.score(model, self.scored);
-        let (r, m) = (self.reactive.mean_square, self.model.mean_square);
+        self.model_score.add(model, self.scored);
+        for (score, r) in self.reactive_scores.iter_mut().zip(reactive) {
+            score.add(r, self.scored);
+        }
         if self.scored < MIN_SCORED {
             return self.weight;
         }
+        // Against the better reactive law, where the guider may choose it.
+        let [h, p] = self.reactive_scores.map(|s| s.0);
+        let r = if adds.law_choice { h.min(p) } else { h };
+        let m = self.model_score.0;
         if m < (1.0 - MARGIN) * r {
             self.weight += RISE_PER_FRAME;
         } else if m > r {
@@ -187,16 +221,17 @@ impl Trust {
         self.weight
     }
 
-    /// Score the two laws' measurements and switch the reactive law when
+    /// Score the two reactive laws' measurements and switch the law when
     /// one is measured better.
-    fn choose_law(&mut self, with_hysteresis: f64, without: f64) {
+    fn choose_law(&mut self, reactive: [f64; 2]) {
         self.law_scored += 1.0;
-        self.hysteretic.score(with_hysteresis, self.law_scored);
-        self.proportional.score(without, self.law_scored);
+        for (score, r) in self.law_scores.iter_mut().zip(reactive) {
+            score.add(r, self.law_scored);
+        }
         if self.law_scored < LAW_MIN_SCORED {
             return;
         }
-        let (h, p) = (self.hysteretic.mean_square, self.proportional.mean_square);
+        let [h, p] = self.law_scores.map(|s| s.0);
         if p < (1.0 - LAW_MARGIN) * h {
             self.use_proportional = true;
         } else if p > h {
@@ -220,10 +255,9 @@ impl Trust {
     /// controls' sum after this frame, and its last two controls).
     pub fn follow(&mut self, applied: f64, controls: [f64; 2]) {
         for s in [
-            &mut self.reactive,
-            &mut self.model,
             &mut self.hysteretic,
             &mut self.proportional,
+            &mut self.model,
         ] {
             s.applied = applied;
             s.controls = controls;
@@ -263,6 +297,49 @@ mod tests {
             assert!(weights[..weights.len() - 1].iter().all(|&w| w == 1.0));
             assert_eq!(weights[weights.len() - 1], last);
         }
+    }
+
+    /// Frames of a faded stage until the weight first falls: a sine of 2 px
+    /// and 50 frames under 1 px of noise, predicted exactly for 3,000
+    /// frames; then gone while the model still predicts it. The model's lead
+    /// before and its loss after are alike. The stages change where the
+    /// stage goes if `rescore`.
+    fn frames_to_fall(rescore: bool) -> usize {
+        let sine = |k: usize| 2.0 * (k as f64 * core::f64::consts::TAU / 50.0).sin();
+        // The prediction of the next frame's change of the sine, over the
+        // prediction gain the law applies it with.
+        let predicted = |k: usize| (sine(k + 1) - sine(k)) / LAW.prediction_gain;
+        let mut state = 0x2545_f491_u32;
+        let mut noise = move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            2.0 * (state as f64 / u32::MAX as f64) - 1.0
+        };
+        let mut trust = Trust::new();
+        for k in 0..3000 {
+            let gear = sine(k) + noise();
+            trust.measured(gear, &LAW, Some((predicted(k), 1.0)), &Additions::ALL);
+        }
+        assert_eq!(trust.weight, 1.0);
+        if rescore {
+            trust.rescore();
+        }
+        (3000..20_000)
+            .position(|k| {
+                trust.measured(noise(), &LAW, Some((predicted(k), 1.0)), &Additions::ALL) < 1.0
+            })
+            .map_or(usize::MAX, |n| n + 1)
+    }
+
+    #[test]
+    fn a_model_whose_stages_changed_is_scored_again() {
+        // What was scored counts as MIN_SCORED frames: the new model's
+        // loss outweighs the old lead within about as many.
+        let (with, without) = (frames_to_fall(true), frames_to_fall(false));
+        assert!(with < MIN_SCORED as usize, "{with}");
+        // Without, the old lead fades over the whole window.
+        assert!(without > 2 * MIN_SCORED as usize, "{without}");
     }
 
     #[test]
