@@ -149,9 +149,32 @@ impl Trust {
         prediction: Option<(f64, f64)>,
         adds: &Additions,
     ) -> f64 {
-        let weight = self.score(gear, law, prediction, adds);
+        let hysteretic = Law {
+            hysteresis: HYSTERESIS,
+            ..*law
+        };
+        let proportional = Law {
+            hysteresis: 0.0,
+            ..*law
+        };
+        let reactive = [
+            self.hysteretic.step(gear, &hysteretic, None),
+            self.proportional.step(gear, &proportional, None),
+        ];
+        let model = self.model.step(gear, law, prediction);
+        if gear.is_finite() && reactive.iter().all(|r| r.is_finite()) && model.is_finite() {
+            self.choose_law(reactive);
+            if prediction.is_some_and(|(_, blend)| blend > 0.0) {
+                self.move_weight(model, reactive, adds.law_choice);
+            }
+        } else {
+            *self = Self {
+                weight: 0.0,
+                ..Self::default()
+            };
+        }
         if adds.trust_shadows {
-            weight
+            self.weight
         } else {
             1.0
         }
@@ -167,50 +190,20 @@ impl Trust {
         self.scored = self.scored.min(MIN_SCORED);
     }
 
-    /// Run the shadows one frame, choose the law and move the weight;
-    /// returns it.
-    fn score(
-        &mut self,
-        gear: f64,
-        law: &Law<f64>,
-        prediction: Option<(f64, f64)>,
-        adds: &Additions,
-    ) -> f64 {
-        let hysteretic = Law {
-            hysteresis: HYSTERESIS,
-            ..*law
-        };
-        let proportional = Law {
-            hysteresis: 0.0,
-            ..*law
-        };
-        let reactive = [
-            self.hysteretic.step(gear, &hysteretic, None),
-            self.proportional.step(gear, &proportional, None),
-        ];
-        let model = self.model.step(gear, law, prediction);
-        if !(gear.is_finite() && reactive.iter().all(|r| r.is_finite()) && model.is_finite()) {
-            *self = Self {
-                weight: 0.0,
-                ..Self::default()
-            };
-            return 0.0;
-        }
-        self.choose_law(reactive);
-        if prediction.is_none_or(|(_, blend)| !(blend > 0.0)) {
-            return self.weight;
-        }
+    /// Score a frame where the model's shadow differs from the reactive
+    /// ones, and move the weight: against the better reactive law where
+    /// the guider may choose it (`law_choice`), else the hysteresis.
+    fn move_weight(&mut self, model: f64, reactive: [f64; 2], law_choice: bool) {
         self.scored += 1.0;
         self.model_score.add(model, self.scored);
         for (score, r) in self.reactive_scores.iter_mut().zip(reactive) {
             score.add(r, self.scored);
         }
         if self.scored < MIN_SCORED {
-            return self.weight;
+            return;
         }
-        // Against the better reactive law, where the guider may choose it.
         let [h, p] = self.reactive_scores.map(|s| s.0);
-        let r = if adds.law_choice { h.min(p) } else { h };
+        let r = if law_choice { h.min(p) } else { h };
         let m = self.model_score.0;
         if m < (1.0 - MARGIN) * r {
             self.weight += RISE_PER_FRAME;
@@ -218,7 +211,6 @@ impl Trust {
             self.weight -= FALL_PER_FRAME;
         }
         self.weight = self.weight.clamp(0.0, 1.0);
-        self.weight
     }
 
     /// Score the two reactive laws' measurements and switch the law when
