@@ -292,10 +292,10 @@ mod tests {
     }
 
     /// Frames of a faded stage until the weight first falls: a sine of 2 px
-    /// and 50 frames under 1 px of noise, predicted exactly for 3,000
-    /// frames; then gone while the model still predicts it. The model's lead
-    /// before and its loss after are alike. The stages change where the
-    /// stage goes if `rescore`.
+    /// and 50 frames under uniform noise of 1 px either way, predicted
+    /// exactly for 3,000 frames; then gone while the model still predicts
+    /// it. The model's lead before and its loss after are alike. The stages
+    /// change where the stage goes if `rescore`.
     fn frames_to_fall(rescore: bool) -> usize {
         let sine = |k: usize| 2.0 * (k as f64 * core::f64::consts::TAU / 50.0).sin();
         // The prediction of the next frame's change of the sine, over the
