@@ -99,6 +99,11 @@ pub struct Additions {
     /// is measured against the better (`model::guider::trust`). Off: the
     /// reference's hysteresis term always, and the trust against it.
     pub law_choice: bool,
+    /// The guider: when the model's stages change (a stage found, given
+    /// up, or moved by more than 5 %), the trust's score of the old model
+    /// counts as 200 frames, no more (`model::guider::trust`). Off: the new
+    /// model inherits the old one's whole score.
+    pub trust_rescore: bool,
     /// The guider: the mount's feed-forward reads the model the grid's lag
     /// later, where the gear error's own time lies
     /// (`GuiderConfig::prediction_at_gear_time`, `Grid::lag_s`). Off: at
@@ -110,6 +115,35 @@ pub struct Additions {
     /// refused like any other off the clock, and a clock that jumped is
     /// refused until it comes back.
     pub clock_hold: bool,
+    /// The restore: with every stage's phase known, the saved data is
+    /// placed where the stages' phases, weighted by their gates, are least
+    /// off within eight worm periods (`model::guider::restore`,
+    /// `placement`). Off: at the worm's phase within one worm period.
+    pub placement_search: bool,
+    /// The restore: with the phase unknown, the saved data is matched
+    /// against the first half worm period of new data and placed at the
+    /// phase found (`Restore::phase_search_pending`). Off: the saved data
+    /// is dropped, the stages' periods and gates kept.
+    pub phase_search: bool,
+    /// The restore: with the worm's phase known (an index), each other
+    /// stage's share of the saved data is taken out and put back at the
+    /// phase the new data shows (`restore::harmonics`). Off: the saved data
+    /// placed at the worm's phase, the other stages left out of the fit
+    /// until a search of the whole at that phase, a quarter worm period on.
+    pub stage_phases: bool,
+    /// The restore: the stages' phases are searched again at each new cell
+    /// until an F-test picks each one clearly, up to half a worm period.
+    /// Off: the first search places them.
+    pub phase_retry: bool,
+    /// The restore: the spectrum is not read until the data resolves the
+    /// restored stages (2.5 beats) or fills the grid, the stages held as
+    /// saved (`SpectrumHold`). Off: read from the first frame after the
+    /// placement.
+    pub spectrum_hold: bool,
+    /// The restore: at the first frame the restored data moves to meet the
+    /// measured gear error's level (the mount's reconstruction starts
+    /// again from 0 each night). Off: it stays at the saved level.
+    pub level_match: bool,
 }
 
 /// A name [`Additions::set`] does not know.
@@ -139,12 +173,19 @@ impl Additions {
         follow_band: true,
         trust_shadows: true,
         law_choice: true,
+        trust_rescore: true,
         grid_lag: true,
         clock_hold: true,
+        placement_search: true,
+        phase_search: true,
+        stage_phases: true,
+        phase_retry: true,
+        spectrum_hold: true,
+        level_match: true,
     };
 
     /// Each addition's name, as [`set`](Self::set) takes it.
-    pub const NAMES: [&'static str; 22] = [
+    pub const NAMES: [&'static str; 29] = [
         "bump",
         "pulse_weight",
         "earned_share",
@@ -165,8 +206,15 @@ impl Additions {
         "follow_band",
         "trust_shadows",
         "law_choice",
+        "trust_rescore",
         "grid_lag",
         "clock_hold",
+        "placement_search",
+        "phase_search",
+        "stage_phases",
+        "phase_retry",
+        "spectrum_hold",
+        "level_match",
     ];
 
     /// Switches the addition called `name` on or off.
@@ -192,8 +240,15 @@ impl Additions {
             "follow_band" => &mut self.follow_band,
             "trust_shadows" => &mut self.trust_shadows,
             "law_choice" => &mut self.law_choice,
+            "trust_rescore" => &mut self.trust_rescore,
             "grid_lag" => &mut self.grid_lag,
             "clock_hold" => &mut self.clock_hold,
+            "placement_search" => &mut self.placement_search,
+            "phase_search" => &mut self.phase_search,
+            "stage_phases" => &mut self.stage_phases,
+            "phase_retry" => &mut self.phase_retry,
+            "spectrum_hold" => &mut self.spectrum_hold,
+            "level_match" => &mut self.level_match,
             _ => return Err(UnknownAddition),
         };
         *switch = on;

@@ -270,7 +270,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             trust = Trust::new(),
             trusted_stages = StageWatch::NEW,
             faults = Faults::default(),
-            restore in Restore::init,
+            restore in |slot| Restore::init(slot, config.additions),
         })
     }
 
@@ -381,7 +381,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         let (timestamp, prediction) = self.model_step(time_s, time_step);
         if N > 1 {
             if self.trusted_stages.changed(self.periods_s()) {
-                self.trust.rescore();
+                self.trust.stages_changed(&self.config.additions);
             }
             let weight = self.trust.measured(
                 gear,

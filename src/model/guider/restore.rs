@@ -20,6 +20,7 @@
 use core::mem::MaybeUninit;
 
 use super::{GuiderConfig, DARK_VARIANCE};
+use crate::model::additions::Additions;
 use crate::model::gp::grid::{Grid, CELL_S, GRID_CELLS, UNMEASURED_VARIANCE};
 use crate::model::gp::infer::Gp;
 use crate::model::gp::kernel::Kernel;
@@ -141,6 +142,10 @@ pub(super) struct Restore<const N: usize> {
     phase_search: Option<PhaseSearch<N>>,
     /// A restored grid whose spectrum is not read yet.
     spectrum_hold: Option<SpectrumHold>,
+    /// The guider's additions, of which the restore's own
+    /// (`placement_search`, `phase_search`, `stage_phases`, `phase_retry`,
+    /// `spectrum_hold`, `level_match`) decide what it does.
+    adds: Additions,
 }
 
 /// The guider's stages as a restore reads them: each one's tracker and
@@ -188,12 +193,13 @@ pub(super) fn check<S: Scalar, const N: usize>(
 
 impl<const N: usize> Restore<N> {
     /// Nothing restored, in place as the guider that holds it
-    /// (`crate::model::in_place`).
-    pub(super) fn init(slot: &mut MaybeUninit<Self>) -> &mut Self {
+    /// (`crate::model::in_place`), running the guider's `adds`.
+    pub(super) fn init(slot: &mut MaybeUninit<Self>, adds: Additions) -> &mut Self {
         init_fields!(slot, Self {
             resume = None,
             phase_search = None,
             spectrum_hold = None,
+            adds = adds,
         })
     }
 
@@ -248,7 +254,8 @@ impl<const N: usize> Restore<N> {
     /// Take `snapshot` (passed by [`check`]) back into the guider's
     /// cleared state, as [`Guider::restore`](super::Guider::restore): the
     /// stages' periods, gates and discovery, and the cells into `grid`, to
-    /// be placed at the first frame as `phase` allows.
+    /// be placed at the first frame as `phase` allows (with the phase
+    /// unknown and without the addition `phase_search`, not taken back).
     pub(super) fn take_back<S: Scalar>(
         &mut self,
         snapshot: &Snapshot<'_>,
@@ -276,6 +283,10 @@ impl<const N: usize> Restore<N> {
             Phase::Worm { gear_time_offset_s } => (gear_time_offset_s, Place::Worm),
             Phase::Unknown => (0.0, Place::Search),
         };
+        if place == Place::Search && !self.adds.phase_search {
+            self.spectrum_hold = Some(SpectrumHold { gap_s: 0.0 });
+            return;
+        }
         // The saved clock = the new clock + the offset.
         let grid_zero_s = snapshot.origin_s() - offset;
         if grid_zero_s.is_finite() && snapshot.cell_count() > 0 {
@@ -368,7 +379,8 @@ impl<const N: usize> Restore<N> {
             });
         }
         let x = time_s - resume.grid_zero_s;
-        let mut at = placement(grid, stages, x, resume.place == Place::Worm);
+        let worm_only = resume.place == Place::Worm || !self.adds.placement_search;
+        let mut at = placement(grid, stages, x, worm_only);
         let end = grid.open_cell_end();
         // Placed exactly where the saved clock says, the model continues:
         // every line keeps its phase, and so does the spectrum.
@@ -380,7 +392,11 @@ impl<const N: usize> Restore<N> {
             // With the stages apart, the saved cells go right before the
             // frame (no gap), the worm's share moved to its phase there;
             // the other stages' phases are found by the search.
-            let apart = take_out_stages(grid, scratch, stages, saved, at - end);
+            let apart = if self.adds.stage_phases {
+                take_out_stages(grid, scratch, stages, saved, at - end)
+            } else {
+                None
+            };
             if apart.is_some() {
                 at = end;
             }
@@ -401,6 +417,7 @@ impl<const N: usize> Restore<N> {
         let periods = stages.trackers.map(|t| t.period_s);
         *fit.kernel = Kernel::new(&periods, &self.fit_gates(stages.gates));
         if let Some(level) = gear
+            .filter(|_| self.adds.level_match)
             .zip(fit.mean_from_data(grid, scratch, at))
             .map(|(g, m)| g - m)
         {
@@ -446,7 +463,7 @@ impl<const N: usize> Restore<N> {
                 let placed = phases.iter().flatten().all(|p| p.is_clear());
                 // The last wait: the next cell would pass the most.
                 let last = new_cells as f64 + 1.0 > STAGE_PHASE_SEARCH_MAX_PERIODS * worm_cells;
-                if placed || full || last {
+                if placed || full || last || !self.adds.phase_retry {
                     put_back_stages(grid, scratch, saved, &h, &phases, level);
                 } else {
                     // Again at the next cell (half a cell of slack, as the
@@ -577,7 +594,8 @@ impl<const N: usize> Restore<N> {
     /// Whether the spectrum of `grid` is not read at this frame: while
     /// restored data waits for the phase search, and then until the data
     /// resolves every two stages with weight by [`HOLD_BEATS`] (not
-    /// counting the placement's gap) or fills the grid.
+    /// counting the placement's gap) or fills the grid (without the
+    /// addition `spectrum_hold`, only while the search waits).
     pub(super) fn spectrum_held<S: Scalar>(
         &mut self,
         grid: &Grid<S>,
@@ -585,6 +603,9 @@ impl<const N: usize> Restore<N> {
     ) -> bool {
         if self.phase_search.is_some() {
             return true;
+        }
+        if !self.adds.spectrum_hold {
+            self.spectrum_hold = None;
         }
         let Some(hold) = self.spectrum_hold else {
             return false;
@@ -832,6 +853,7 @@ fn placement<S: Scalar, const N: usize>(
 
 #[cfg(test)]
 mod tests {
+    use super::WORM_PHASE_SEARCH_PERIODS;
     use crate::model::guider::{Guider, GuiderConfig};
     use crate::model::snapshot::{snapshot_len, Phase, Snapshot, SNAPSHOT_CELLS, SNAPSHOT_MAX};
 
@@ -1052,26 +1074,39 @@ mod tests {
             t += 2.0;
         }
         assert!((g.period_s(1) - 380.0).abs() < 5.0 && g.gate(1) == 1.0);
+        let saved = (g.period_s(1), g.gate(1));
         let mut buf = [0u8; SNAPSHOT_MAX];
         let n = g.snapshot(&mut buf).unwrap();
         let snapshot = Snapshot::parse(&buf[..n], 2).unwrap();
+        let mut unheld = std::vec::Vec::new();
         for phase in [20_000.0, 30_000.0, 40_000.0, 50_000.0] {
-            let mut r = std::boxed::Box::new(Guider::<f32, 2>::new(config));
-            let end = 10_000.0;
-            let index = Phase::Worm {
-                gear_time_offset_s: end + libm::fmod(phase - end, 432.0),
+            let night_2 = |config| {
+                let mut r = std::boxed::Box::new(Guider::<f32, 2>::new(config));
+                let end = 10_000.0;
+                let index = Phase::Worm {
+                    gear_time_offset_s: end + libm::fmod(phase - end, 432.0),
+                };
+                r.restore(&snapshot, index).unwrap();
+                let mut t = 0.0;
+                while t < 1800.0 {
+                    r.observe(t, Some(c2(t + phase) + 5.0), 0.0, 10.0, 2.0);
+                    t += 2.0;
+                }
+                r
             };
-            r.restore(&snapshot, index).unwrap();
-            let mut t = 0.0;
-            while t < 1800.0 {
-                r.observe(t, Some(c2(t + phase) + 5.0), 0.0, 10.0, 2.0);
-                t += 2.0;
-            }
             // 30 min on, the data spans 2.2 beats: still held, the stage
             // as saved.
+            let r = night_2(config);
             assert!(r.restore.spectrum_hold.is_some(), "{phase}");
-            assert_eq!((r.period_s(1), r.gate(1)), (g.period_s(1), g.gate(1)));
+            assert_eq!((r.period_s(1), r.gate(1)), saved);
+            let r = night_2(without(&g, "spectrum_hold"));
+            assert!(r.restore.spectrum_hold.is_none(), "{phase}");
+            unheld.push((r.period_s(1), r.gate(1)));
         }
+        // Without the hold the spectrum of the restored data moves the
+        // stage or closes its gate.
+        std::println!("without the hold: {unheld:?} (saved {saved:?})");
+        assert!(unheld.iter().any(|&s| s != saved), "{unheld:?}");
     }
 
     /// A new guider holding the learned model, restored with its phase
@@ -1113,6 +1148,148 @@ mod tests {
         assert!(r.restore.phase_search.is_none());
         assert!(r.grid.len() < 60, "{}", r.grid.len());
         assert!(r.snapshot(&mut [0u8; SNAPSHOT_MAX]).is_ok());
+    }
+
+    /// `g`'s configuration with the addition `name` off.
+    fn without(g: &Guider<f32, 2>, name: &str) -> GuiderConfig<f32> {
+        let mut config = *g.config();
+        config.additions.set(name, false).unwrap();
+        config
+    }
+
+    /// A guider configured by `config` with `g`'s snapshot restored at
+    /// `phase`, the snapshot's first cell and its origin on the saved
+    /// clock.
+    fn restored_into(
+        g: &Guider<f32, 2>,
+        config: GuiderConfig<f32>,
+        phase: Phase,
+    ) -> (std::boxed::Box<Guider<f32, 2>>, (f32, f32), f64) {
+        let mut bytes = [0u8; SNAPSHOT_MAX];
+        let n = g.snapshot(&mut bytes).unwrap();
+        let snapshot = Snapshot::parse(&bytes[..n], 2).unwrap();
+        let mut r = std::boxed::Box::new(Guider::<f32, 2>::new(config));
+        r.restore(&snapshot, phase).unwrap();
+        let first = snapshot.cells().next().unwrap();
+        (r, first, snapshot.origin_s())
+    }
+
+    /// The worm index of a gear moved to `phase` after night 1's 8,000 s.
+    fn index(phase: f64) -> Phase {
+        Phase::Worm {
+            gear_time_offset_s: 8000.0 + libm::fmod(phase - 8000.0, 432.0),
+        }
+    }
+
+    #[test]
+    fn without_placement_search_the_worm_alone_places_the_saved_data() {
+        // Moved far while off, every phase known: the first frame's gear
+        // time, less where the saved clock puts it, is a whole number of
+        // worm periods without the search; with it, the 155 s stage's
+        // phase is traded against the worm's, and the first 15 minutes
+        // predict better.
+        let g = learned();
+        let phase = 20_000.0;
+        let placed = |config| {
+            let known = Phase::Known {
+                gear_time_offset_s: phase,
+            };
+            let (mut r, _, origin) = restored_into(&g, config, known);
+            r.observe(0.0, Some(gear(phase)), 0.0, 10.0, 2.0);
+            let worm = r.period_s(0);
+            // The first frame at clock 0: its gear time on the restored
+            // grid is -start_time; the saved clock puts it `phase` less
+            // the saved data's origin.
+            let cycles = (-r.start_time - (phase - origin)) / worm;
+            let rms = run(&mut r, phase, 0.0, 2.0, 900.0, 30.0);
+            (cycles - libm::round(cycles), rms)
+        };
+        let (on_off_cycle, on) = placed(*g.config());
+        let (off_cycle, off) = placed(without(&g, "placement_search"));
+        std::println!("placement: on {on_off_cycle} {on}, off {off_cycle} {off}");
+        // Within the placement's 1 s step of the worm's phase, or not.
+        assert!(off_cycle.abs() < 1e-3, "{off_cycle}");
+        assert!(on_off_cycle.abs() > 1e-3, "{on_off_cycle}");
+        assert!(on < off, "{on} vs {off}");
+    }
+
+    #[test]
+    fn without_phase_search_an_unknown_phase_keeps_the_stages_not_the_data() {
+        let g = learned();
+        let (mut r, _, _) = restored_into(&g, without(&g, "phase_search"), Phase::Unknown);
+        assert_eq!((r.period_s(1), r.gate(1)), (g.period_s(1), g.gate(1)));
+        let mut cold = std::boxed::Box::new(Guider::<f32, 2>::new(*g.config()));
+        run(&mut r, 777.0, 0.0, 0.0, 100.0, 0.0);
+        run(&mut cold, 777.0, 0.0, 0.0, 100.0, 0.0);
+        // No search waits, and only the new data is held.
+        assert!(r.restore.phase_search.is_none());
+        assert_eq!(r.grid.len(), cold.grid.len());
+        assert!(r.snapshot(&mut [0u8; SNAPSHOT_MAX]).is_ok());
+    }
+
+    #[test]
+    fn without_stage_phases_the_index_places_the_worm_alone() {
+        // With the stages fitted apart, the search waits for a twentieth
+        // of a worm period or so; without, a quarter, every stage but the
+        // worm out of the fit until then.
+        let g = learned();
+        for (config, apart) in [(*g.config(), true), (without(&g, "stage_phases"), false)] {
+            let (mut r, _, _) = restored_into(&g, config, index(20_000.0));
+            r.observe(0.0, Some(gear(20_000.0)), 0.0, 10.0, 2.0);
+            let search = r.restore.phase_search.unwrap();
+            assert_eq!(search.stages.is_some(), apart);
+            assert_eq!(search.wait_periods == WORM_PHASE_SEARCH_PERIODS, !apart);
+        }
+    }
+
+    #[test]
+    fn without_phase_retry_the_first_search_places_the_stages() {
+        // Under seeing of 6 px either way the 155 s stage's phase is not
+        // clear at the first search (five cells of new data): with the
+        // retry the search runs again at the next cells, without it the
+        // stage is put back where the first one found it.
+        let g = learned();
+        let phase = 20_000.0;
+        let placed_at = |config| {
+            let (mut r, _, _) = restored_into(&g, config, index(phase));
+            let mut state = 0x2545_f491_u32;
+            let mut t = 0.0;
+            while r.restore.phase_search.is_some() || t == 0.0 {
+                state ^= state << 13;
+                state ^= state >> 17;
+                state ^= state << 5;
+                let seeing = 12.0 * (state as f64 / u32::MAX as f64) - 6.0;
+                r.observe(t, Some(gear(t + phase) + 5.0 + seeing), 0.0, 10.0, 2.0);
+                t += 2.0;
+            }
+            t
+        };
+        let (retried, once) = (
+            placed_at(*g.config()),
+            placed_at(without(&g, "phase_retry")),
+        );
+        std::println!("placed at {retried} s with the retry, {once} s without");
+        assert!(once < retried, "{once} {retried}");
+    }
+
+    #[test]
+    fn without_level_match_the_restored_data_keeps_its_level() {
+        // Night 2's gear error reconstructed 5 px above night 1's: the
+        // restored cells move to meet it, or stay as saved.
+        let g = learned();
+        let known = Phase::Known {
+            gear_time_offset_s: 8000.0,
+        };
+        for (config, matched) in [(*g.config(), true), (without(&g, "level_match"), false)] {
+            let (mut r, (saved, _), _) = restored_into(&g, config, known);
+            r.observe(0.0, Some(gear(8000.0) + 5.0), 0.0, 10.0, 2.0);
+            let moved = r.grid.cell(0).0 - saved;
+            if matched {
+                assert!((moved - 5.0).abs() < 0.5, "{moved}");
+            } else {
+                assert_eq!(moved, 0.0);
+            }
+        }
     }
 
     #[test]

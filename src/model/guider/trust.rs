@@ -116,10 +116,10 @@ pub(super) struct Trust {
     /// The mean squares of the model's shadow and of the two reactive
     /// ones over the frames where the model's shadow differed from the
     /// reactive ones (until then all score the same, which would only
-    /// dilute the comparison), and how many they count as ([`rescore`]
-    /// cuts it).
+    /// dilute the comparison), and how many they count as
+    /// ([`stages_changed`] cuts it).
     ///
-    /// [`rescore`]: Trust::rescore
+    /// [`stages_changed`]: Trust::stages_changed
     model_score: MeanSquare,
     reactive_scores: [MeanSquare; 2],
     scored: f64,
@@ -186,8 +186,11 @@ impl Trust {
     /// held: a model whose new stages are worse loses its old lead within
     /// about as many frames. Starting the score afresh held the weight for
     /// those frames, and cost the short PHD2 logs (02: 0.26 -> 0.17 %).
-    pub fn rescore(&mut self) {
-        self.scored = self.scored.min(MIN_SCORED);
+    /// Without the addition `trust_rescore` the old score stands.
+    pub fn stages_changed(&mut self, adds: &Additions) {
+        if adds.trust_rescore {
+            self.scored = self.scored.min(MIN_SCORED);
+        }
     }
 
     /// Score a frame where the model's shadow differs from the reactive
@@ -295,8 +298,8 @@ mod tests {
     /// and 50 frames under uniform noise of 1 px either way, predicted
     /// exactly for 3,000 frames; then gone while the model still predicts
     /// it. The model's lead before and its loss after are alike. The stages
-    /// change where the stage goes if `rescore`.
-    fn frames_to_fall(rescore: bool) -> usize {
+    /// change where the stage goes.
+    fn frames_to_fall(adds: &Additions) -> usize {
         let sine = |k: usize| 2.0 * (k as f64 * core::f64::consts::TAU / 50.0).sin();
         // The prediction of the next frame's change of the sine, over the
         // prediction gain the law applies it with.
@@ -311,16 +314,12 @@ mod tests {
         let mut trust = Trust::new();
         for k in 0..3000 {
             let gear = sine(k) + noise();
-            trust.measured(gear, &LAW, Some((predicted(k), 1.0)), &Additions::ALL);
+            trust.measured(gear, &LAW, Some((predicted(k), 1.0)), adds);
         }
         assert_eq!(trust.weight, 1.0);
-        if rescore {
-            trust.rescore();
-        }
+        trust.stages_changed(adds);
         (3000..20_000)
-            .position(|k| {
-                trust.measured(noise(), &LAW, Some((predicted(k), 1.0)), &Additions::ALL) < 1.0
-            })
+            .position(|k| trust.measured(noise(), &LAW, Some((predicted(k), 1.0)), adds) < 1.0)
             .map_or(usize::MAX, |n| n + 1)
     }
 
@@ -328,9 +327,10 @@ mod tests {
     fn a_model_whose_stages_changed_is_scored_again() {
         // What was scored counts as MIN_SCORED frames: the new model's
         // loss outweighs the old lead within about as many.
-        let (with, without) = (frames_to_fall(true), frames_to_fall(false));
+        let with = frames_to_fall(&Additions::ALL);
         assert!(with < MIN_SCORED as usize, "{with}");
-        // Without, the old lead fades over the whole window.
+        // Without `trust_rescore` the old lead fades over the whole window.
+        let without = frames_to_fall(&without("trust_rescore"));
         assert!(without > 2 * MIN_SCORED as usize, "{without}");
     }
 
