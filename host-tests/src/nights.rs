@@ -27,9 +27,10 @@
 //!   own night-2 phase and, with noise, night 2 with its own noise.
 
 use crate::cases::Case;
-use crate::st4_sim::{Firmware, Rig, SEEDS};
+use crate::st4_sim::{self, Firmware, Rig, SEEDS};
 use crate::store_sim::SimStore;
 use mkgp_mount::control_loop::port_mount::StoreRequest;
+use mkgp_mount::model::additions::Additions;
 use mkgp_mount::model::snapshot::Phase;
 use mkgp_mount::mount::learner::RECORD_FORMAT;
 use mkgp_mount::port::mount_port::StepCounts;
@@ -88,20 +89,36 @@ pub fn night_2_phase(seed: u64) -> f64 {
     SplitMix64::new(seed).uniform() * PHASE_SPAN_S
 }
 
+/// What every night of a row shares: the case, its noise and the
+/// additions the firmware runs.
+#[derive(Clone, Copy)]
+struct Run<'a> {
+    case: &'a Case,
+    noise_px: f64,
+    additions: Additions,
+}
+
 /// A night of `length_s` on the MKGP firmware, scored from `score_from_s`,
 /// the gear at `gear_phase_s`. Its firmware boots from `boot`'s store,
 /// restoring its newest model with the phase given; without, from an
 /// erased store and a cold model.
 fn night(
-    case: &Case,
-    noise_px: f64,
+    run: Run,
     seed: u64,
     gear_phase_s: f64,
     boot: Option<(SimStore, Phase)>,
     length_s: f64,
     score_from_s: f64,
 ) -> Rig {
-    let mut rig = Rig::new(case, Firmware::Mkgp, noise_px, seed);
+    let config = st4_sim::mount_config(run.case);
+    let mut rig = Rig::with_additions(
+        run.case,
+        Firmware::Mkgp,
+        run.noise_px,
+        seed,
+        config,
+        run.additions,
+    );
     rig.gear_phase_s = gear_phase_s;
     rig.lock_arcsec = rig.pointing_arcsec();
     rig.score_window_s = (score_from_s, f64::INFINITY);
@@ -123,8 +140,9 @@ fn night(
 
 /// The four figures for one seed: settled, cold, restored without and with
 /// the phase.
-fn one_seed(case: &Case, noise_px: f64, seed: u64, start: Night2Start) -> [f64; 4] {
-    let mut first = night(case, noise_px, seed, 0.0, None, NIGHT_1_S, SETTLED_FROM_S);
+fn one_seed(run: Run, seed: u64, start: Night2Start) -> [f64; 4] {
+    let case = run.case;
+    let mut first = night(run, seed, 0.0, None, NIGHT_1_S, SETTLED_FROM_S);
     let request = match start {
         Night2Start::Moved => StoreRequest::Model { port: 0 },
         Night2Start::Parked => StoreRequest::Park(StepCounts {
@@ -147,7 +165,7 @@ fn one_seed(case: &Case, noise_px: f64, seed: u64, start: Night2Start) -> [f64; 
     let seed_2 = seed + NIGHT_2_NOISE_SEED;
     let second = |restore: Option<Phase>| {
         let boot = restore.map(|p| (flash.clone(), p));
-        night(case, noise_px, seed_2, phase, boot, FIRST_S, 0.0).score()
+        night(run, seed_2, phase, boot, FIRST_S, 0.0).score()
     };
     let known = match start {
         Night2Start::Moved => Phase::Worm {
@@ -165,11 +183,16 @@ fn one_seed(case: &Case, noise_px: f64, seed: u64, start: Night2Start) -> [f64; 
 }
 
 /// One row: the mean over [`SEEDS`], each its own night-2 phase (and
-/// noise).
-pub fn row(case: &Case, noise_px: f64, start: Night2Start) -> Row {
+/// noise), the firmware running `additions`.
+pub fn row(case: &Case, noise_px: f64, start: Night2Start, additions: Additions) -> Row {
+    let run = Run {
+        case,
+        noise_px,
+        additions,
+    };
     let runs: Vec<[f64; 4]> = SEEDS
         .par_iter()
-        .map(|&seed| one_seed(case, noise_px, seed, start))
+        .map(|&seed| one_seed(run, seed, start))
         .collect();
     let mean = |k: usize| runs.iter().map(|r| r[k]).sum::<f64>() / runs.len() as f64;
     Row {
@@ -184,13 +207,18 @@ pub fn row(case: &Case, noise_px: f64, start: Night2Start) -> Row {
 
 /// The table for `cases` and noise levels, one row per case and level in
 /// that order; the rows run in parallel.
-pub fn table(cases: &[Case], noise_levels: &[f64], start: Night2Start) -> Vec<Row> {
+pub fn table(
+    cases: &[Case],
+    noise_levels: &[f64],
+    start: Night2Start,
+    additions: Additions,
+) -> Vec<Row> {
     let rows: Vec<(&Case, f64)> = cases
         .iter()
         .flat_map(|case| noise_levels.iter().map(move |&noise| (case, noise)))
         .collect();
     rows.into_par_iter()
-        .map(|(case, noise)| row(case, noise, start))
+        .map(|(case, noise)| row(case, noise, start, additions))
         .collect()
 }
 

@@ -15,6 +15,7 @@ use host_tests::night::session::TRUTH_HEADER;
 use host_tests::night::{self, NightRun, MAX_RATE_SIDEREAL};
 use host_tests::phd2_log;
 use host_tests::st4_sim::Firmware;
+use mkgp_mount::model::additions::Additions;
 use mkgp_mount::mount::guiding::calibration;
 use std::collections::BTreeSet;
 use std::path::Path;
@@ -105,7 +106,7 @@ fn test_night() -> &'static TestNight {
     static NIGHT: OnceLock<TestNight> = OnceLock::new();
     NIGHT.get_or_init(|| {
         let c = case("C5");
-        let run = |fw, log| night::run(&c, fw, 1.0, 1, DEFAULT, log).unwrap();
+        let run = |fw, log| night::run(&c, fw, 1.0, 1, DEFAULT, Additions::ALL, log).unwrap();
         let (alone, mkgp) = rayon::join(
             || run(Firmware::GuiderOnly, true),
             || run(Firmware::Mkgp, false),
@@ -294,6 +295,7 @@ fn the_night_logs_in_data_are_the_commands() {
                 noise,
                 seed,
                 DEFAULT,
+                Additions::ALL,
                 true,
             )
             .unwrap()

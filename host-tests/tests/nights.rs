@@ -5,10 +5,11 @@
 use host_tests::cases;
 use host_tests::data::cases_file;
 use host_tests::nights::{self, Night2Start, Row};
+use mkgp_mount::model::additions::Additions;
 
 fn table(levels: &[f64], start: Night2Start) -> Vec<Row> {
     let cases = cases::load(&cases_file()).unwrap_or_else(|e| panic!("{e}"));
-    nights::table(&cases, levels, start)
+    nights::table(&cases, levels, start, Additions::ALL)
 }
 
 /// Checks every row with `ok` and names the rows that fail.

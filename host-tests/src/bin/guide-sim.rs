@@ -10,8 +10,9 @@
 //!               [--drift A] [--walk W] [--bump B] [--least-pulse-share F]
 //!               [--without NAME]...
 //! guide-sim nights [--case ID] [--cases FILE] [--noise PX] [--park] [--csv]
+//!                  [--without NAME]...
 //! guide-sim night [--case ID] [--cases FILE] [--noise PX] [--seed N] [--csv]
-//!                 [--phd2-log FILE] [--truth FILE]
+//!                 [--phd2-log FILE] [--truth FILE] [--without NAME]...
 //! guide-sim mount [--pty PATH] [--tcp PORT] [--case ID] [--cases FILE] [--noise PX]
 //!                 [--speed X] [--no-st4-guider]
 //! guide-sim view (--port DEVICE | --pty PATH | --tcp HOST:PORT) [--listen ADDR:PORT]
@@ -386,6 +387,9 @@ struct NightsArgs {
     /// phase drawn from the seed)
     #[arg(long)]
     park: bool,
+    /// Switch off this addition around the paper's model (repeatable; `ablate --help`)
+    #[arg(long, value_name = "NAME", value_parser = addition_name)]
+    without: Vec<String>,
 }
 
 #[derive(Args)]
@@ -401,6 +405,9 @@ struct NightArgs {
     /// Write the true gear error per guide row of that log as CSV (one night only)
     #[arg(long, value_name = "FILE")]
     truth: Option<PathBuf>,
+    /// Switch off this addition around the paper's model (repeatable; `ablate --help`)
+    #[arg(long, value_name = "NAME", value_parser = addition_name)]
+    without: Vec<String>,
 }
 
 fn noise_px(s: &str) -> Result<f64, String> {
@@ -762,7 +769,7 @@ fn cmd_nights(args: NightsArgs) -> ExitCode {
     } else {
         nights::Night2Start::Moved
     };
-    let rows = nights::table(&cases, &levels, start);
+    let rows = nights::table(&cases, &levels, start, additions_without(&args.without));
     if args.runs.csv {
         println!("{}", nights::CSV_HEADER);
         for r in &rows {
@@ -865,15 +872,23 @@ fn cmd_night(args: NightArgs) -> ExitCode {
         eprintln!("guide-sim night: --phd2-log and --truth need one night: give --case, --noise and --seed");
         return ExitCode::from(2);
     }
+    let additions = additions_without(&args.without);
     let nights = if one {
-        night::night(&cases[0], levels[0], seeds[0], script, logs).map(|n| vec![n])
+        night::night(&cases[0], levels[0], seeds[0], script, additions, logs).map(|n| vec![n])
     } else {
-        night::sweep(&cases, &levels, &seeds, script, |done, total, n| {
-            eprintln!(
-                "guide-sim night: {done}/{total} {} {} px seed {}",
-                n.case, n.noise_px, n.seed
-            );
-        })
+        night::sweep(
+            &cases,
+            &levels,
+            &seeds,
+            script,
+            additions,
+            |done, total, n| {
+                eprintln!(
+                    "guide-sim night: {done}/{total} {} {} px seed {}",
+                    n.case, n.noise_px, n.seed
+                );
+            },
+        )
     };
     let nights = match nights {
         Ok(n) => n,

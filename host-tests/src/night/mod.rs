@@ -34,6 +34,7 @@ use crate::cases::Case;
 use crate::st4_sim::{self, Extremes, Firmware, Rig};
 use ledger::{Activity, Rms, Tally};
 use mkgp_mount::control_loop::port_motion::PortMotionCounters;
+use mkgp_mount::model::additions::Additions;
 use mkgp_mount::model::guider::Faults;
 use mkgp_mount::mount::config::MountConfig;
 use mkgp_mount::mount::guiding::GuidingCounters;
@@ -103,18 +104,20 @@ impl NightRun {
     }
 }
 
-/// `script` (checked first) with `firmware` on `case`; `log`: also the
-/// guider's PHD2 log and its truth.
+/// `script` (checked first) with `firmware` on `case`, running
+/// `additions`; `log`: also the guider's PHD2 log and its truth.
 pub fn run(
     case: &Case,
     firmware: Firmware,
     noise_px: f64,
     seed: u64,
     script: &[Event],
+    additions: Additions,
     log: bool,
 ) -> Result<NightRun, script::ScriptError> {
     script::check(script, MAX_RATE_SIDEREAL as f64)?;
-    let rig = Rig::with_mount(case, firmware, noise_px, seed, mount_config(case));
+    let config = mount_config(case);
+    let rig = Rig::with_additions(case, firmware, noise_px, seed, config, additions);
     let out = Session::new(rig, noise_px, seed, log).run(script);
     let rig = &out.rig;
     let tallies = Activity::ALL
@@ -152,16 +155,17 @@ pub struct Night {
     pub fw_mkgp: NightRun,
 }
 
-/// The three firmwares on one night (in parallel); the guider alone
-/// writes its PHD2 log if `log`.
+/// The three firmwares on one night (in parallel), running `additions`;
+/// the guider alone writes its PHD2 log if `log`.
 pub fn night(
     case: &Case,
     noise_px: f64,
     seed: u64,
     script: &[Event],
+    additions: Additions,
     log: bool,
 ) -> Result<Night, script::ScriptError> {
-    let fw = |f, log| run(case, f, noise_px, seed, script, log);
+    let fw = |f, log| run(case, f, noise_px, seed, script, additions, log);
     let (guider_only, (fw_ppec, fw_mkgp)) = rayon::join(
         || fw(Firmware::GuiderOnly, log),
         || rayon::join(|| fw(Firmware::Ppec, false), || fw(Firmware::Mkgp, false)),
@@ -184,6 +188,7 @@ pub fn sweep(
     levels: &[f64],
     seeds: &[u64],
     script: &[Event],
+    additions: Additions,
     progress: impl Fn(usize, usize, &Night) + Sync,
 ) -> Result<Vec<Night>, script::ScriptError> {
     let runs: Vec<(&Case, f64, u64)> = cases
@@ -197,7 +202,7 @@ pub fn sweep(
     let done = AtomicUsize::new(0);
     runs.par_iter()
         .map(|&(case, noise, seed)| {
-            let n = night(case, noise, seed, script, false)?;
+            let n = night(case, noise, seed, script, additions, false)?;
             progress(done.fetch_add(1, Ordering::SeqCst) + 1, runs.len(), &n);
             Ok(n)
         })
