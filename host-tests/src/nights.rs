@@ -27,11 +27,12 @@
 //!   own night-2 phase and, with noise, night 2 with its own noise.
 
 use crate::cases::Case;
-use crate::st4_sim::{self, Firmware, Rig, SEEDS};
+use crate::st4_sim::{self, Firmware, Rig, Setup, SEEDS};
 use crate::store_sim::SimStore;
 use mkgp_mount::control_loop::port_mount::StoreRequest;
 use mkgp_mount::model::additions::Additions;
 use mkgp_mount::model::snapshot::Phase;
+use mkgp_mount::mount::config::MountConfig;
 use mkgp_mount::mount::learner::RECORD_FORMAT;
 use mkgp_mount::port::mount_port::StepCounts;
 use mkgp_mount::testing::SplitMix64;
@@ -89,13 +90,31 @@ pub fn night_2_phase(seed: u64) -> f64 {
     SplitMix64::new(seed).uniform() * PHASE_SPAN_S
 }
 
-/// What every night of a row shares: the case, its noise and the
-/// additions the firmware runs.
+/// What every night of a seed shares: the gear, its noise, the guider,
+/// the sky and the additions the firmware runs (`setup`), and the mount's
+/// configuration.
 #[derive(Clone, Copy)]
-struct Run<'a> {
-    case: &'a Case,
-    noise_px: f64,
-    additions: Additions,
+pub struct Run<'a> {
+    pub case: &'a Case,
+    pub noise_px: f64,
+    pub setup: Setup,
+    pub config: MountConfig,
+}
+
+impl<'a> Run<'a> {
+    /// `case` as the table runs it: the default guider and sky, the
+    /// case's mount, the firmware running `additions`.
+    pub fn case(case: &'a Case, noise_px: f64, additions: Additions) -> Self {
+        Run {
+            case,
+            noise_px,
+            setup: Setup {
+                additions,
+                ..Setup::default()
+            },
+            config: st4_sim::mount_config(case),
+        }
+    }
 }
 
 /// A night of `length_s` on the MKGP firmware, scored from `score_from_s`,
@@ -110,15 +129,16 @@ fn night(
     length_s: f64,
     score_from_s: f64,
 ) -> Rig {
-    let config = st4_sim::mount_config(run.case);
     let mut rig = Rig::with_additions(
         run.case,
         Firmware::Mkgp,
         run.noise_px,
         seed,
-        config,
-        run.additions,
+        run.config,
+        run.setup.additions,
     );
+    rig.set_guider(run.setup.guider);
+    rig.set_sky(run.setup.sky);
     rig.gear_phase_s = gear_phase_s;
     rig.lock_arcsec = rig.pointing_arcsec();
     rig.score_window_s = (score_from_s, f64::INFINITY);
@@ -140,7 +160,7 @@ fn night(
 
 /// The four figures for one seed: settled, cold, restored without and with
 /// the phase.
-fn one_seed(run: Run, seed: u64, start: Night2Start) -> [f64; 4] {
+pub fn one_seed(run: Run, seed: u64, start: Night2Start) -> [f64; 4] {
     let case = run.case;
     let mut first = night(run, seed, 0.0, None, NIGHT_1_S, SETTLED_FROM_S);
     let request = match start {
@@ -185,11 +205,7 @@ fn one_seed(run: Run, seed: u64, start: Night2Start) -> [f64; 4] {
 /// One row: the mean over [`SEEDS`], each its own night-2 phase (and
 /// noise), the firmware running `additions`.
 pub fn row(case: &Case, noise_px: f64, start: Night2Start, additions: Additions) -> Row {
-    let run = Run {
-        case,
-        noise_px,
-        additions,
-    };
+    let run = Run::case(case, noise_px, additions);
     let runs: Vec<[f64; 4]> = SEEDS
         .par_iter()
         .map(|&seed| one_seed(run, seed, start))

@@ -306,6 +306,7 @@ fn each_subcommand_help_lists_its_options() {
                 "--noise <PX>",
                 "--park",
                 "--csv",
+                "--without <NAME>",
             ],
         ),
         (
@@ -318,6 +319,7 @@ fn each_subcommand_help_lists_its_options() {
                 "--csv",
                 "--phd2-log <FILE>",
                 "--truth <FILE>",
+                "--without <NAME>",
             ],
         ),
         ("population", &["--seed <S>", "--count <N>", "--csv"]),

@@ -179,7 +179,10 @@ enum Command {
     /// seeing, its first run seed only), the paper's cases C1-C8 at 0 and 1 px and
     /// the PHD2 logs of host-tests/data with every addition on, then with each one
     /// switched off in turn (--only: just those). The learner's additions are run
-    /// in the firmware's loop (fw mkgp over the guider alone), the model's in the
+    /// in the firmware's loop (fw mkgp over the guider alone), the restore's and
+    /// the saved share across a power cycle (as `nights`, the gear moved while
+    /// off: night 2's first 30 min restored, the mean of without and with the
+    /// index, over cold; about 3 s of CPU per mount), the model's in the
     /// model's (mkgp over the reactive guider). Prints per addition and noise
     /// level the mounts' ratios with it off, the change in median and worst
     /// against all on (positive: the addition pays) with its spread (the bootstrap
@@ -1187,9 +1190,10 @@ fn cmd_ablate(AblateArgs { seed, count, only }: AblateArgs) -> ExitCode {
         logs.len()
     );
     println!(
-        "ratio: the model with {} stages over the reactive guider (model loop) or fw mkgp over \
-         the guider alone (firmware loop); change: with the addition off less all on \
-         (positive: it pays); spread: bootstrap SD over redrawn mounts",
+        "ratio: the model with {} stages over the reactive guider (model loop), fw mkgp over \
+         the guider alone (firmware loop) or night 2's first 30 min restored (the mean of \
+         without and with the index) over cold (restore loop); change: with the addition off \
+         less all on (positive: it pays); spread: bootstrap SD over redrawn mounts",
         ablation::MODEL.stages()
     );
     println!(
@@ -1207,7 +1211,7 @@ fn cmd_ablate(AblateArgs { seed, count, only }: AblateArgs) -> ExitCode {
         "cases"
     );
     let mut verdicts = Vec::new();
-    for lp in [Loop::Model, Loop::Firmware] {
+    for lp in [Loop::Model, Loop::Firmware, Loop::Restore] {
         let these: Vec<&str> = names
             .iter()
             .copied()
