@@ -205,7 +205,7 @@ pub struct Guider<S: Scalar, const N: usize = 2> {
     trusted_stages: StageWatch<N>,
     faults: Faults,
     /// What a restore (or a jump of the clock) leaves waiting for the new
-    /// data: the first frame, the phase search, the held spectrum.
+    /// data: the first frame, the phase search.
     restore: Restore<N>,
 }
 
@@ -773,7 +773,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         }
         if self.config.compute_period
             && timestamp > self.config.periods_for_estimation * self.trackers[0].period_s
-            && !self.restore.spectrum_held(&self.grid, stages)
+            && !self.restore.searching()
         {
             if self.peaks_stale {
                 self.peaks_stale = false;

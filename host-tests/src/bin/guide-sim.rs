@@ -337,12 +337,16 @@ struct St4Args {
 /// A parser of an addition's name (`mkgp_mount::model::additions`).
 fn addition_name(s: &str) -> Result<String, String> {
     use mkgp_mount::model::additions::Additions;
-    if Additions::NAMES.contains(&s) {
+    if Additions::acts(s).is_some() {
         Ok(s.to_string())
     } else {
         Err(format!(
             "no addition is called that (they are: {})",
-            Additions::NAMES.join(", ")
+            Additions::NAMES
+                .iter()
+                .map(|(n, _)| *n)
+                .collect::<Vec<_>>()
+                .join(", ")
         ))
     }
 }
@@ -1158,12 +1162,12 @@ fn cmd_population(PopulationArgs { seed, count, csv }: PopulationArgs) -> ExitCo
 }
 
 fn cmd_ablate(AblateArgs { seed, count, only }: AblateArgs) -> ExitCode {
-    use ablation::{Bench, Loop};
-    use mkgp_mount::model::additions::Additions;
-    let names: Vec<&str> = Additions::NAMES
+    use ablation::Bench;
+    use mkgp_mount::model::additions::{Acts, Additions};
+    let names: Vec<(&str, Acts)> = Additions::NAMES
         .iter()
         .copied()
-        .filter(|n| only.is_empty() || only.iter().any(|o| o == n))
+        .filter(|(n, _)| only.is_empty() || only.iter().any(|o| o == n))
         .collect();
     let Some((_, cases)) = load_cases(None) else {
         return ExitCode::FAILURE;
@@ -1211,11 +1215,11 @@ fn cmd_ablate(AblateArgs { seed, count, only }: AblateArgs) -> ExitCode {
         "cases"
     );
     let mut verdicts = Vec::new();
-    for lp in [Loop::Model, Loop::Firmware, Loop::Restore] {
+    for lp in [Acts::Model, Acts::Firmware, Acts::Restore] {
         let these: Vec<&str> = names
             .iter()
-            .copied()
-            .filter(|n| Loop::of(n) == lp)
+            .filter(|&&(_, acts)| acts == lp)
+            .map(|&(n, _)| n)
             .collect();
         if these.is_empty() {
             continue;
@@ -1228,7 +1232,7 @@ fn cmd_ablate(AblateArgs { seed, count, only }: AblateArgs) -> ExitCode {
                 return ExitCode::FAILURE;
             }
         };
-        progress(&format!("{} loop, all on", lp.name()));
+        progress(&format!("{} loop, all on", ablation::loop_name(lp)));
         let numbers = bench.mount_numbers();
         let all_on = ablation::worth(&numbers, &on, &on);
         print_worth("(all on)", lp, &all_on, None, &on);
@@ -1267,7 +1271,7 @@ fn cmd_ablate(AblateArgs { seed, count, only }: AblateArgs) -> ExitCode {
 /// An ablation's two lines (noise-free, seeing); `verdict` `None` for all on.
 fn print_worth(
     name: &str,
-    lp: ablation::Loop,
+    lp: mkgp_mount::model::additions::Acts,
     worth: &[ablation::Worth; 2],
     verdict: Option<ablation::Verdict>,
     figures: &ablation::Figures,
@@ -1286,7 +1290,7 @@ fn print_worth(
         println!(
             "{:<22} {:<8} {:<6} {:>6.3} {:>6.3} {:>13} {:>5} {:>15} {:>15} {:>5} {:>6.3}  {}",
             name,
-            lp.name(),
+            ablation::loop_name(lp),
             w.level.name(),
             s.median,
             s.p90,

@@ -27,7 +27,7 @@ use crate::model::gp::kernel::Kernel;
 use crate::model::in_place::init_fields;
 use crate::model::numeric::scalar::Scalar;
 use crate::model::snapshot::{encode, Phase, SavedStage, Snapshot, SnapshotError, SNAPSHOT_CELLS};
-use crate::model::spectral::discovery::{beats, Discovery};
+use crate::model::spectral::discovery::Discovery;
 use crate::model::spectral::fft::FFT_LEN;
 use crate::model::spectral::period::PeriodTracker;
 
@@ -73,25 +73,6 @@ const GAP_PHASE_DRIFT: f64 = 5e-4;
 /// Measured cells whose level is averaged (a minute of data).
 const LEVEL_CELLS: u32 = 12;
 
-/// Beats between every two stages with weight that a restored grid's data
-/// must span before its spectrum is read again: the Hamming window's main
-/// lobe is two beats either side of a line, and the newest 1,000 cells
-/// (83 min) that a snapshot keeps span 1.6 between C2's 380 s stage and
-/// its 432 s worm. Two lobes that close merge or not by the two lines'
-/// phases, which a restore changes: the stage's line vanished on most
-/// night-2 phases, its gate closed and the octave rule moved it away.
-const HOLD_BEATS: f64 = 2.5;
-
-/// A restored grid whose spectrum is not read: its periods, stages and
-/// gates stay as saved until the data resolves its stages
-/// ([`HOLD_BEATS`]) or fills the grid.
-#[derive(Clone, Copy, Debug)]
-struct SpectrumHold {
-    /// Cells without data the placement left between the saved data and
-    /// the new, s: no evidence of any line.
-    gap_s: f64,
-}
-
 /// A restored grid waiting for the first frame.
 #[derive(Clone, Copy, Debug)]
 struct Resume {
@@ -130,22 +111,20 @@ struct PhaseSearch<const N: usize> {
     stages: Option<(usize, Harmonics<N>)>,
 }
 
-/// A restore in progress: the grid waiting for its first frame, the phase
-/// search and the held spectrum. It owns that state, and each call borrows
+/// A restore in progress: the grid waiting for its first frame and the
+/// phase search. It owns that state, and each call borrows
 /// the parts of the guider it reads or changes (the grid, the work buffer,
 /// the stages, the fit), so that what a restore can touch is in its
 /// signatures rather than anywhere in the guider.
 pub(super) struct Restore<const N: usize> {
     /// A restored grid waiting for the first frame to be placed.
     resume: Option<Resume>,
+    /// The guider's additions (its configuration does not change), of
+    /// which the restore's own (`placement_search`, `phase_search`,
+    /// `stage_phases`, `phase_retry`, `level_match`) decide what it does.
+    adds: Additions,
     /// Restored data waiting for the phase search.
     phase_search: Option<PhaseSearch<N>>,
-    /// A restored grid whose spectrum is not read yet.
-    spectrum_hold: Option<SpectrumHold>,
-    /// The guider's additions, of which the restore's own
-    /// (`placement_search`, `phase_search`, `stage_phases`, `phase_retry`,
-    /// `spectrum_hold`, `level_match`) decide what it does.
-    adds: Additions,
 }
 
 /// The guider's stages as a restore reads them: each one's tracker and
@@ -197,9 +176,8 @@ impl<const N: usize> Restore<N> {
     pub(super) fn init(slot: &mut MaybeUninit<Self>, adds: Additions) -> &mut Self {
         init_fields!(slot, Self {
             resume = None,
-            phase_search = None,
-            spectrum_hold = None,
             adds = adds,
+            phase_search = None,
         })
     }
 
@@ -207,7 +185,6 @@ impl<const N: usize> Restore<N> {
     pub(super) fn clear(&mut self) {
         self.resume = None;
         self.phase_search = None;
-        self.spectrum_hold = None;
     }
 
     /// [`Guider::snapshot`](super::Guider::snapshot) of `grid`, `stages`
@@ -284,7 +261,6 @@ impl<const N: usize> Restore<N> {
             Phase::Unknown => (0.0, Place::Search),
         };
         if place == Place::Search && !self.adds.phase_search {
-            self.spectrum_hold = Some(SpectrumHold { gap_s: 0.0 });
             return;
         }
         // The saved clock = the new clock + the offset.
@@ -295,7 +271,6 @@ impl<const N: usize> Restore<N> {
                 .map(|(g, v)| (S::from_f64(g as f64), S::from_f64(v as f64)));
             grid.restore(cells, DARK_VARIANCE);
             self.resume = Some(Resume { grid_zero_s, place });
-            self.spectrum_hold = Some(SpectrumHold { gap_s: 0.0 });
         }
     }
 
@@ -335,7 +310,6 @@ impl<const N: usize> Restore<N> {
             grid_zero_s: zero,
             place: Place::AllStages,
         });
-        self.spectrum_hold = Some(SpectrumHold { gap_s: 0.0 });
         true
     }
 
@@ -378,15 +352,9 @@ impl<const N: usize> Restore<N> {
                 placed: false,
             });
         }
-        let x = time_s - resume.grid_zero_s;
         let worm_only = resume.place == Place::Worm || !self.adds.placement_search;
-        let mut at = placement(grid, stages, x, worm_only);
+        let mut at = placement(grid, stages, time_s - resume.grid_zero_s, worm_only);
         let end = grid.open_cell_end();
-        // Placed exactly where the saved clock says, the model continues:
-        // every line keeps its phase, and so does the spectrum.
-        if resume.place == Place::AllStages && at == x {
-            self.spectrum_hold = None;
-        }
         if resume.place == Place::Worm {
             let saved = grid.len();
             // With the stages apart, the saved cells go right before the
@@ -413,7 +381,6 @@ impl<const N: usize> Restore<N> {
                 stages: apart.map(|h| (saved, h)),
             });
         }
-        self.hold_over_gap(at - end);
         let periods = stages.trackers.map(|t| t.period_s);
         *fit.kernel = Kernel::new(&periods, &self.fit_gates(stages.gates));
         if let Some(level) = gear
@@ -580,51 +547,13 @@ impl<const N: usize> Restore<N> {
         }
         grid.shift_gear(0..saved, level);
         grid.insert_gap(saved, gap.1, DARK_VARIANCE);
-        self.hold_over_gap(CELL_S * gap.1 as f64);
         true
     }
 
-    /// The placement left `gap_s` without data inside the held spectrum.
-    fn hold_over_gap(&mut self, gap_s: f64) {
-        if let Some(hold) = &mut self.spectrum_hold {
-            hold.gap_s += gap_s.max(0.0);
-        }
-    }
-
-    /// Whether the spectrum of `grid` is not read at this frame: while
-    /// restored data waits for the phase search, and then until the data
-    /// resolves every two stages with weight by [`HOLD_BEATS`] (not
-    /// counting the placement's gap) or fills the grid (without the
-    /// addition `spectrum_hold`, only while the search waits).
-    pub(super) fn spectrum_held<S: Scalar>(
-        &mut self,
-        grid: &Grid<S>,
-        stages: Stages<'_, N>,
-    ) -> bool {
-        if self.phase_search.is_some() {
-            return true;
-        }
-        if !self.adds.spectrum_hold {
-            self.spectrum_hold = None;
-        }
-        let Some(hold) = self.spectrum_hold else {
-            return false;
-        };
-        let span = grid.len() as f64 * CELL_S - hold.gap_s;
-        let weighs = |s: usize| s == 0 || stages.gates[s] > 0.0;
-        let resolved = (0..N).filter(|&i| weighs(i)).all(|i| {
-            (i + 1..N).filter(|&j| weighs(j)).all(|j| {
-                beats(
-                    span,
-                    stages.trackers[i].period_s,
-                    stages.trackers[j].period_s,
-                ) >= HOLD_BEATS
-            })
-        });
-        if resolved || grid.len() >= GRID_CELLS {
-            self.spectrum_hold = None;
-        }
-        self.spectrum_hold.is_some()
+    /// Whether restored data waits for the phase search: its spectrum is
+    /// not read until the search has placed it.
+    pub(super) fn searching(&self) -> bool {
+        self.phase_search.is_some()
     }
 }
 
@@ -856,6 +785,7 @@ mod tests {
     use super::WORM_PHASE_SEARCH_PERIODS;
     use crate::model::guider::{Guider, GuiderConfig};
     use crate::model::snapshot::{snapshot_len, Phase, Snapshot, SNAPSHOT_CELLS, SNAPSHOT_MAX};
+    use crate::testing::SplitMix64;
 
     const TAU: f64 = 2.0 * core::f64::consts::PI;
 
@@ -902,18 +832,42 @@ mod tests {
         g
     }
 
-    /// A fresh guider with `g`'s snapshot restored at a known phase, the
-    /// saved gear time the new one plus `offset_s`.
-    fn restored_at(g: &Guider<f32, 2>, offset_s: f64) -> std::boxed::Box<Guider<f32, 2>> {
+    /// `g`'s configuration with the addition `name` off.
+    fn without(g: &Guider<f32, 2>, name: &str) -> GuiderConfig<f32> {
+        let mut config = *g.config();
+        config.additions.set(name, false).unwrap();
+        config
+    }
+
+    /// A guider configured by `config` with `g`'s snapshot restored at
+    /// `phase`, the snapshot's first cell and its origin on the saved
+    /// clock.
+    fn restored_into(
+        g: &Guider<f32, 2>,
+        config: GuiderConfig<f32>,
+        phase: Phase,
+    ) -> (std::boxed::Box<Guider<f32, 2>>, (f32, f32), f64) {
         let mut bytes = [0u8; SNAPSHOT_MAX];
         let n = g.snapshot(&mut bytes).unwrap();
-        let mut r = std::boxed::Box::new(Guider::<f32, 2>::new(*g.config()));
-        let phase = Phase::Known {
+        let snapshot = Snapshot::parse(&bytes[..n], 2).unwrap();
+        let mut r = std::boxed::Box::new(Guider::<f32, 2>::new(config));
+        r.restore(&snapshot, phase).unwrap();
+        let first = snapshot.cells().next().unwrap();
+        (r, first, snapshot.origin_s())
+    }
+
+    /// A known phase: the saved gear time the new one plus `offset_s`.
+    fn known(offset_s: f64) -> Phase {
+        Phase::Known {
             gear_time_offset_s: offset_s,
-        };
-        r.restore(&Snapshot::parse(&bytes[..n], 2).unwrap(), phase)
-            .unwrap();
-        r
+        }
+    }
+
+    /// The worm index of a gear moved to `phase` after night 1's 8,000 s.
+    fn index(phase: f64) -> Phase {
+        Phase::Worm {
+            gear_time_offset_s: 8000.0 + libm::fmod(phase - 8000.0, 432.0),
+        }
     }
 
     /// First 15 min of night 2 after a power cycle, RMS error of the
@@ -921,24 +875,14 @@ mod tests {
     /// cold, on a clock that starts again at 0 with the gear at `phase`
     /// (the saved model's gear time) and the level moved by 5.
     fn night_2(g: &Guider<f32, 2>, phase: f64) -> (f64, f64, f64) {
-        let mut buf = [0u8; SNAPSHOT_MAX];
-        let n = g.snapshot(&mut buf).unwrap();
-        assert_eq!(n, snapshot_len(2, SNAPSHOT_CELLS));
-        let snapshot = Snapshot::parse(&buf[..n], 2).unwrap();
-        let fresh = || std::boxed::Box::new(Guider::<f32, 2>::new(*g.config()));
-        let mut known = fresh();
-        let offset = Phase::Known {
-            gear_time_offset_s: phase,
-        };
-        known.restore(&snapshot, offset).unwrap();
-        assert_eq!(known.period_s(0), g.period_s(0));
-        assert_eq!(known.gate(1), g.gate(1));
-        let mut unknown = fresh();
-        unknown.restore(&snapshot, Phase::Unknown).unwrap();
-        let mut cold = fresh();
+        let (mut placed, _, _) = restored_into(g, *g.config(), known(phase));
+        assert_eq!(placed.period_s(0), g.period_s(0));
+        assert_eq!(placed.gate(1), g.gate(1));
+        let (mut unknown, _, _) = restored_into(g, *g.config(), Phase::Unknown);
+        let mut cold = std::boxed::Box::new(Guider::<f32, 2>::new(*g.config()));
         let first = |m: &mut Guider<f32, 2>| run(m, phase, 5.0, 0.0, 900.0, 30.0);
-        let rms = (first(&mut known), first(&mut unknown), first(&mut cold));
-        assert_eq!(known.faults().inference_failures, 0);
+        let rms = (first(&mut placed), first(&mut unknown), first(&mut cold));
+        assert_eq!(placed.faults().inference_failures, 0);
         rms
     }
 
@@ -978,7 +922,7 @@ mod tests {
             run(&mut c, 0.0, 0.0, 0.0, 900.0, 0.0)
         };
         for jump in [2_700.0, 43_200.0] {
-            let mut j = restored_at(&g, 0.0);
+            let (mut j, _, _) = restored_into(&g, *g.config(), known(0.0));
             run(&mut j, 0.0, 0.0, 8000.0, 8600.0, 8000.0);
             let stage = (j.period_s(1), j.gate(1));
             j.jumped();
@@ -1016,9 +960,7 @@ mod tests {
         };
         // The first frame has no interval: its gear time is its own.
         let truth = gear(8002.0) - gear(8000.0);
-        let (ff, _) = first_frame(Some(Phase::Known {
-            gear_time_offset_s: 8000.0,
-        }));
+        let (ff, _) = first_frame(Some(known(8000.0)));
         assert!((ff - truth).abs() < 0.1 * truth.abs(), "{ff} vs {truth}");
         assert_eq!(first_frame(None).0, 0.0);
         let (ff, mut worm) = first_frame(Some(Phase::Worm {
@@ -1057,76 +999,15 @@ mod tests {
         assert!(rms < 1.1 * steady, "{rms} vs {steady}");
     }
 
-    #[test]
-    fn a_stage_the_saved_span_does_not_resolve_keeps_its_period_and_gate() {
-        // C2-like: a 380 s stage beside the 432 s worm, 1.6 cycles apart
-        // over the 83 min a snapshot keeps: their lobes in its spectrum
-        // merge or not by their phases, which the index restore changes.
-        let c2 = |t: f64| 9.0 * libm::sin(TAU * t / 432.0) + 3.9 * libm::sin(TAU * t / 380.0);
-        let config = GuiderConfig {
-            prior_period_s: 432.0,
-            ..GuiderConfig::default()
-        };
-        let mut g = std::boxed::Box::new(Guider::<f32, 2>::new(config));
-        let mut t = 0.0;
-        while t < 10_000.0 {
-            g.observe(t, Some(c2(t)), 0.0, 10.0, 2.0);
-            t += 2.0;
-        }
-        assert!((g.period_s(1) - 380.0).abs() < 5.0 && g.gate(1) == 1.0);
-        let saved = (g.period_s(1), g.gate(1));
-        let mut buf = [0u8; SNAPSHOT_MAX];
-        let n = g.snapshot(&mut buf).unwrap();
-        let snapshot = Snapshot::parse(&buf[..n], 2).unwrap();
-        let mut unheld = std::vec::Vec::new();
-        for phase in [20_000.0, 30_000.0, 40_000.0, 50_000.0] {
-            let night_2 = |config| {
-                let mut r = std::boxed::Box::new(Guider::<f32, 2>::new(config));
-                let end = 10_000.0;
-                let index = Phase::Worm {
-                    gear_time_offset_s: end + libm::fmod(phase - end, 432.0),
-                };
-                r.restore(&snapshot, index).unwrap();
-                let mut t = 0.0;
-                while t < 1800.0 {
-                    r.observe(t, Some(c2(t + phase) + 5.0), 0.0, 10.0, 2.0);
-                    t += 2.0;
-                }
-                r
-            };
-            // 30 min on, the data spans 2.2 beats: still held, the stage
-            // as saved.
-            let r = night_2(config);
-            assert!(r.restore.spectrum_hold.is_some(), "{phase}");
-            assert_eq!((r.period_s(1), r.gate(1)), saved);
-            let r = night_2(without(&g, "spectrum_hold"));
-            assert!(r.restore.spectrum_hold.is_none(), "{phase}");
-            unheld.push((r.period_s(1), r.gate(1)));
-        }
-        // Without the hold the spectrum of the restored data moves the
-        // stage or closes its gate.
-        std::println!("without the hold: {unheld:?} (saved {saved:?})");
-        assert!(unheld.iter().any(|&s| s != saved), "{unheld:?}");
-    }
-
     /// A new guider holding the learned model, restored with its phase
     /// unknown (the phase search pending).
-    fn restored_with_phase_unknown() -> std::boxed::Box<Guider<f32, 2>> {
-        let g = learned();
-        let mut buf = [0u8; SNAPSHOT_MAX];
-        let n = g.snapshot(&mut buf).unwrap();
-        let mut r = std::boxed::Box::new(Guider::<f32, 2>::new(*g.config()));
-        r.restore(&Snapshot::parse(&buf[..n], 2).unwrap(), Phase::Unknown)
-            .unwrap();
-        r
-    }
-
     /// While the phase search is pending the grid holds the restored data
     /// at no known phase: no snapshot; after it, one.
     #[test]
     fn no_snapshot_until_the_phase_is_found() {
         use crate::model::snapshot::SnapshotError;
-        let mut r = restored_with_phase_unknown();
+        let g = learned();
+        let (mut r, _, _) = restored_into(&g, *g.config(), Phase::Unknown);
         let mut out = [0u8; SNAPSHOT_MAX];
         run(&mut r, 777.0, 0.0, 0.0, 100.0, 0.0);
         assert_eq!(r.snapshot(&mut out), Err(SnapshotError::Placing));
@@ -1139,7 +1020,8 @@ mod tests {
     /// known phase, is dropped and learning goes on from the new.
     #[test]
     fn without_a_match_the_saved_data_is_dropped() {
-        let mut r = restored_with_phase_unknown();
+        let g = learned();
+        let (mut r, _, _) = restored_into(&g, *g.config(), Phase::Unknown);
         let mut t = 0.0;
         while t < 240.0 {
             r.observe(t, None, 0.0, 10.0, 2.0);
@@ -1148,37 +1030,6 @@ mod tests {
         assert!(r.restore.phase_search.is_none());
         assert!(r.grid.len() < 60, "{}", r.grid.len());
         assert!(r.snapshot(&mut [0u8; SNAPSHOT_MAX]).is_ok());
-    }
-
-    /// `g`'s configuration with the addition `name` off.
-    fn without(g: &Guider<f32, 2>, name: &str) -> GuiderConfig<f32> {
-        let mut config = *g.config();
-        config.additions.set(name, false).unwrap();
-        config
-    }
-
-    /// A guider configured by `config` with `g`'s snapshot restored at
-    /// `phase`, the snapshot's first cell and its origin on the saved
-    /// clock.
-    fn restored_into(
-        g: &Guider<f32, 2>,
-        config: GuiderConfig<f32>,
-        phase: Phase,
-    ) -> (std::boxed::Box<Guider<f32, 2>>, (f32, f32), f64) {
-        let mut bytes = [0u8; SNAPSHOT_MAX];
-        let n = g.snapshot(&mut bytes).unwrap();
-        let snapshot = Snapshot::parse(&bytes[..n], 2).unwrap();
-        let mut r = std::boxed::Box::new(Guider::<f32, 2>::new(config));
-        r.restore(&snapshot, phase).unwrap();
-        let first = snapshot.cells().next().unwrap();
-        (r, first, snapshot.origin_s())
-    }
-
-    /// The worm index of a gear moved to `phase` after night 1's 8,000 s.
-    fn index(phase: f64) -> Phase {
-        Phase::Worm {
-            gear_time_offset_s: 8000.0 + libm::fmod(phase - 8000.0, 432.0),
-        }
     }
 
     #[test]
@@ -1191,10 +1042,7 @@ mod tests {
         let g = learned();
         let phase = 20_000.0;
         let placed = |config| {
-            let known = Phase::Known {
-                gear_time_offset_s: phase,
-            };
-            let (mut r, _, origin) = restored_into(&g, config, known);
+            let (mut r, _, origin) = restored_into(&g, config, known(phase));
             r.observe(0.0, Some(gear(phase)), 0.0, 10.0, 2.0);
             let worm = r.period_s(0);
             // The first frame at clock 0: its gear time on the restored
@@ -1252,13 +1100,10 @@ mod tests {
         let phase = 20_000.0;
         let placed_at = |config| {
             let (mut r, _, _) = restored_into(&g, config, index(phase));
-            let mut state = 0x2545_f491_u32;
+            let mut rng = SplitMix64::new(1);
             let mut t = 0.0;
             while r.restore.phase_search.is_some() || t == 0.0 {
-                state ^= state << 13;
-                state ^= state >> 17;
-                state ^= state << 5;
-                let seeing = 12.0 * (state as f64 / u32::MAX as f64) - 6.0;
+                let seeing = rng.f64_in(-6.0, 6.0);
                 r.observe(t, Some(gear(t + phase) + 5.0 + seeing), 0.0, 10.0, 2.0);
                 t += 2.0;
             }
@@ -1277,11 +1122,8 @@ mod tests {
         // Night 2's gear error reconstructed 5 px above night 1's: the
         // restored cells move to meet it, or stay as saved.
         let g = learned();
-        let known = Phase::Known {
-            gear_time_offset_s: 8000.0,
-        };
         for (config, matched) in [(*g.config(), true), (without(&g, "level_match"), false)] {
-            let (mut r, (saved, _), _) = restored_into(&g, config, known);
+            let (mut r, (saved, _), _) = restored_into(&g, config, known(8000.0));
             r.observe(0.0, Some(gear(8000.0) + 5.0), 0.0, 10.0, 2.0);
             let moved = r.grid.cell(0).0 - saved;
             if matched {
@@ -1295,7 +1137,7 @@ mod tests {
     #[test]
     fn a_snapshot_of_a_restored_model_not_yet_placed_is_the_same_model() {
         let g = learned();
-        let r = restored_at(&g, 100.0);
+        let (r, _, _) = restored_into(&g, *g.config(), known(100.0));
         let mut a = [0u8; SNAPSHOT_MAX];
         let n = g.snapshot(&mut a).unwrap();
         let mut b = [0u8; SNAPSHOT_MAX];

@@ -263,6 +263,7 @@ impl Trust {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testing::SplitMix64;
 
     const LAW: Law<f64> = Law {
         control_gain: 0.6,
@@ -304,13 +305,8 @@ mod tests {
         // The prediction of the next frame's change of the sine, over the
         // prediction gain the law applies it with.
         let predicted = |k: usize| (sine(k + 1) - sine(k)) / LAW.prediction_gain;
-        let mut state = 0x2545_f491_u32;
-        let mut noise = move || {
-            state ^= state << 13;
-            state ^= state >> 17;
-            state ^= state << 5;
-            2.0 * (state as f64 / u32::MAX as f64) - 1.0
-        };
+        let mut rng = SplitMix64::new(1);
+        let mut noise = move || rng.f64_in(-1.0, 1.0);
         let mut trust = Trust::new();
         for k in 0..3000 {
             let gear = sine(k) + noise();
