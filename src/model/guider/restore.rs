@@ -863,7 +863,8 @@ mod tests {
         }
     }
 
-    /// The worm index of a gear moved to `phase` after night 1's 8,000 s.
+    /// The worm index of a gear moved to `phase` after night 1's 8,000 s:
+    /// right modulo the worm's 432 s, within one turn of night 1's end.
     fn index(phase: f64) -> Phase {
         Phase::Worm {
             gear_time_offset_s: 8000.0 + libm::fmod(phase - 8000.0, 432.0),
@@ -981,16 +982,8 @@ mod tests {
     #[test]
     fn with_the_worm_index_each_stage_goes_back_to_its_own_phase() {
         let mut g = learned();
-        let mut buf = [0u8; SNAPSHOT_MAX];
-        let n = g.snapshot(&mut buf).unwrap();
-        let snapshot = Snapshot::parse(&buf[..n], 2).unwrap();
         let phase = 20_000.0;
-        let index = Phase::Worm {
-            // Right modulo the worm's 432 s, within one turn of night 1's end.
-            gear_time_offset_s: 8000.0 + libm::fmod(phase - 8000.0, 432.0),
-        };
-        let mut worm = std::boxed::Box::new(Guider::<f32, 2>::new(*g.config()));
-        worm.restore(&snapshot, index).unwrap();
+        let (mut worm, _, _) = restored_into(&g, *g.config(), index(phase));
         let rms = run(&mut worm, phase, 5.0, 0.0, 900.0, 60.0);
         assert!(worm.restore.phase_search.is_none());
         let steady = run(&mut g, 0.0, 0.0, 8000.0, 8900.0, 8000.0);
