@@ -226,4 +226,39 @@ mod tests {
         assert_eq!(a.set("no_such", false), Err(UnknownAddition));
         assert_eq!(a, Additions::ALL);
     }
+
+    #[test]
+    fn each_addition_acts_in_its_own_loop() {
+        let firmware = [
+            "bump",
+            "pulse_weight",
+            "earned_share",
+            "trusted_gate",
+            "feed_forward_horizon",
+            "feed_forward_weight",
+            "calibration_watch",
+            "grid_lag",
+        ];
+        let restore = [
+            "placement_search",
+            "phase_search",
+            "stage_phases",
+            "phase_retry",
+            "level_match",
+            "saved_share",
+        ];
+        for &(name, acts) in Additions::NAMES {
+            let want = if firmware.contains(&name) {
+                Acts::Firmware
+            } else if restore.contains(&name) {
+                Acts::Restore
+            } else {
+                Acts::Model
+            };
+            assert_eq!(acts, want, "{name}");
+            assert_eq!(Additions::acts(name), Some(acts));
+        }
+        assert_eq!(Additions::acts("measured_subset"), Some(Acts::Model));
+        assert_eq!(Additions::acts("no_such"), None);
+    }
 }

@@ -876,6 +876,8 @@ mod tests {
     /// cold, on a clock that starts again at 0 with the gear at `phase`
     /// (the saved model's gear time) and the level moved by 5.
     fn night_2(g: &Guider<f32, 2>, phase: f64) -> (f64, f64, f64) {
+        let n = g.snapshot(&mut [0u8; SNAPSHOT_MAX]).unwrap();
+        assert_eq!(n, snapshot_len(2, SNAPSHOT_CELLS));
         let (mut placed, _, _) = restored_into(g, *g.config(), known(phase));
         assert_eq!(placed.period_s(0), g.period_s(0));
         assert_eq!(placed.gate(1), g.gate(1));

@@ -78,7 +78,7 @@ pub fn gate(ratio: f64) -> f64 {
 
 /// Beat periods between lines at periods `a` and `b` that `span_s` of
 /// data spans: how far apart the two lie in the spectrum's resolution.
-pub fn beats(span_s: f64, a: f64, b: f64) -> f64 {
+fn beats(span_s: f64, a: f64, b: f64) -> f64 {
     span_s * (1.0 / a - 1.0 / b).abs()
 }
 
