@@ -746,9 +746,8 @@ impl<const N: usize> Placed<N> {
     /// Whether `other` puts every stage of `h` at nearly the same phase
     /// (and leaves out the same ones).
     fn agrees(&self, other: &Self, h: &Harmonics<N>) -> bool {
-        let pairs = self.shifts.iter().zip(&other.shifts).enumerate();
-        pairs.skip(1).all(|(s, pair)| match pair {
-            (&Some(a), &Some(b)) => h.same_phase(s, a, b),
+        (1..N).all(|s| match (self.shifts[s], other.shifts[s]) {
+            (Some(a), Some(b)) => h.same_phase(s, a, b),
             (a, b) => a.is_none() && b.is_none(),
         })
     }

@@ -180,17 +180,16 @@ fn strongest_peak<S: Scalar>(
         let power = spectrum.power(k);
         power > spectrum.power(k.saturating_sub(d))
             && power > spectrum.power(k + d)
-            && !known.iter().zip(lines).any(|(known, line)| {
+            && !(0..known.len()).any(|i| {
                 // A line stronger than a known one is not its harmonic, nor
                 // the fundamental of it (gear errors' harmonics are weaker
                 // than their fundamental): it is refused only at the known
                 // period itself (`stronger_fundamental`).
-                let line_power = spectrum.power(libm::round(period_bin(*line)) as usize);
+                let line_power = spectrum.power(libm::round(period_bin(lines[i])) as usize);
                 if adds.stronger_fundamental && power > line_power {
-                    (known / p - 1.0).abs() <= width
+                    (known[i] / p - 1.0).abs() <= width
                 } else {
-                    let (known, lines) =
-                        (core::slice::from_ref(known), core::slice::from_ref(line));
+                    let (known, lines) = (&known[i..=i], &lines[i..=i]);
                     notched(p, known, lines, span_s, width) || commensurate(p, known, lines, span_s)
                 }
             })

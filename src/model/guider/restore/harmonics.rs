@@ -309,10 +309,8 @@ impl<const N: usize> Harmonics<N> {
         let Some(&period) = self.periods.get(s) else {
             return false;
         };
-        // Whole periods apart by rounding (not `%`: its `fmod` costs 3 KiB
-        // of flash and a panic path).
-        let cycles = (a - b) / period;
-        (cycles - libm::round(cycles)).abs() < 1.0 / 8.0
+        let apart = (a - b).abs() % period;
+        apart.min(period - apart) < period / 8.0
     }
 
     /// Whether any harmonic of stage `s` was fitted.
