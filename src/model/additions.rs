@@ -135,14 +135,6 @@ additions! {
     /// every spectrum it takes the strongest admissible peak of the search
     /// band, as when it was found, and never moves to an octave.
     follow_band: Model,
-    /// Stage discovery: a line stronger than a known one is not refused
-    /// as that one's harmonic or fundamental (the notches and the guard at
-    /// its multiples and divisions), only at the known period itself: a
-    /// gear's harmonics are weaker than its fundamental, so a stage found
-    /// at a belt's harmonic does not keep the belt out
-    /// (`model::spectral::discovery`). Off: every known period guards its
-    /// multiples and divisions, as in the paper.
-    stronger_fundamental: Model,
     /// The guider: with more than one stage, the reference blend is
     /// weighted by the trust the model earns in shadow loops, the model's
     /// against the reactive law alone (`model::guider::trust`). Off: the
@@ -190,14 +182,6 @@ additions! {
     /// until an F-test picks each one clearly, up to half a worm period.
     /// Off: the first search places them.
     phase_retry: Restore,
-    /// The restore: a stage put back at the phase a search picks clearly
-    /// is searched once more at the next cell, and moved if that picks
-    /// another (more than an eighth of its period away), until two in a row
-    /// agree: over a fifth of a 155 s stage the F-test can pass a phase
-    /// that one more cell moves by a third of a period
-    /// (`model::guider::restore`). Off: the first clear search places it
-    /// for good.
-    phase_confirm: Restore,
     /// The restore: at the first frame the restored data moves to meet the
     /// measured gear error's level (the mount's reconstruction starts
     /// again from 0 each night). Off: it stays at the saved level.
@@ -260,7 +244,6 @@ mod tests {
             "phase_search",
             "stage_phases",
             "phase_retry",
-            "phase_confirm",
             "level_match",
             "saved_share",
         ];

@@ -109,17 +109,6 @@ struct PhaseSearch<const N: usize> {
     /// placed at it, the other stages' shares taken out of them, to be put
     /// back at the phases the new data shows.
     stages: Option<(usize, Harmonics<N>)>,
-    /// Where the stages were put back while a search confirms it
-    /// (`phase_confirm`).
-    placed: Option<Placed<N>>,
-}
-
-/// The stages put back into the restored cells: each one's shift (`None`:
-/// left out) and the level the cells moved to.
-#[derive(Clone, Copy, Debug)]
-struct Placed<const N: usize> {
-    shifts: [Option<f64>; N],
-    level: f64,
 }
 
 /// A restore in progress: the grid waiting for its first frame and the
@@ -132,8 +121,7 @@ pub(super) struct Restore<const N: usize> {
     resume: Option<Resume>,
     /// The guider's additions (its configuration does not change), of
     /// which the restore's own (`placement_search`, `phase_search`,
-    /// `stage_phases`, `phase_retry`, `phase_confirm`, `level_match`) decide
-    /// what it does.
+    /// `stage_phases`, `phase_retry`, `level_match`) decide what it does.
     adds: Additions,
     /// Restored data waiting for the phase search.
     phase_search: Option<PhaseSearch<N>>,
@@ -358,7 +346,6 @@ impl<const N: usize> Restore<N> {
                 wait_periods: PHASE_SEARCH_PERIODS,
                 blocks: true,
                 stages: None,
-                placed: None,
             });
             return Some(Resumed {
                 gear_time_s: grid.open_cell_end(),
@@ -392,7 +379,6 @@ impl<const N: usize> Restore<N> {
                 },
                 blocks: false,
                 stages: apart.map(|h| (saved, h)),
-                placed: None,
             });
         }
         let periods = stages.trackers.map(|t| t.period_s);
@@ -441,32 +427,16 @@ impl<const N: usize> Restore<N> {
         match search.stages {
             Some((saved, h)) => {
                 let (phases, level) = find_stage_phases(grid, scratch, search.new_from, &h);
-                let clear = phases.iter().flatten().all(StagePhase::is_clear);
-                let found = Placed {
-                    shifts: phases.map(|p| p.map(|p| p.shift_s)),
-                    level,
-                };
-                // A clear phase is put back at once; with `phase_confirm`
-                // the search runs once more, and moves it if the next cell
-                // picks another.
-                let confirmed = !self.adds.phase_confirm
-                    || search
-                        .placed
-                        .is_some_and(|before| before.agrees(&found, &h));
+                let placed = phases.iter().flatten().all(|p| p.is_clear());
                 // The last wait: the next cell would pass the most.
                 let last = new_cells as f64 + 1.0 > STAGE_PHASE_SEARCH_MAX_PERIODS * worm_cells;
-                let done = (clear && confirmed) || full || last || !self.adds.phase_retry;
-                let mut placed = search.placed;
-                if clear || done {
-                    put_back_stages(grid, scratch, saved, &h, placed.as_ref(), &found);
-                    placed = Some(found);
-                }
-                if !done {
+                if placed || full || last || !self.adds.phase_retry {
+                    put_back_stages(grid, scratch, saved, &h, &phases, level);
+                } else {
                     // Again at the next cell (half a cell of slack, as the
                     // wait is in worm periods).
                     self.phase_search = Some(PhaseSearch {
                         wait_periods: (new_cells as f64 + 0.5) / worm_cells,
-                        placed,
                         ..search
                     });
                 }
@@ -482,10 +452,7 @@ impl<const N: usize> Restore<N> {
     /// phase, and would predict them wrongly rather than not at all).
     pub(super) fn fit_gates(&self, gates: &[f64; N]) -> [f64; N] {
         let mut gates = *gates;
-        if self
-            .phase_search
-            .is_some_and(|search| search.placed.is_none())
-        {
+        if self.phase_search.is_some() {
             gates[1..].fill(0.0);
         }
         gates
@@ -742,54 +709,29 @@ fn find_stage_phases<S: Scalar, const N: usize>(
     (phases, level)
 }
 
-impl<const N: usize> Placed<N> {
-    /// Whether `other` puts every stage of `h` at nearly the same phase
-    /// (and leaves out the same ones).
-    fn agrees(&self, other: &Self, h: &Harmonics<N>) -> bool {
-        (1..N).all(|s| match (self.shifts[s], other.shifts[s]) {
-            (Some(a), Some(b)) => h.same_phase(s, a, b),
-            (a, b) => a.is_none() && b.is_none(),
-        })
-    }
-
-    /// The stages of `h` (the worm's left out) at these shifts.
-    fn stages(&self, h: &Harmonics<N>) -> Harmonics<N> {
-        let mut placed = *h;
-        placed.clear(0);
-        for (s, shift) in self.shifts.iter().enumerate().skip(1) {
-            match shift {
-                Some(by) => placed.shift(s, *by),
-                None => placed.clear(s),
-            }
-        }
-        placed
-    }
-}
-
 /// Put the stages taken out of the restored cells (held `..saved` in
-/// `grid`) back where `to` places them ([`find_stage_phases`]), and move
-/// the restored cells to its level; `from`: where they were put back
-/// before (`None`: still out). A stage without a phase stays out of the
-/// restored cells.
+/// `grid`) back at `phases` ([`find_stage_phases`]), and move the restored
+/// cells to `level`. A stage without a phase stays out of the restored
+/// cells.
 fn put_back_stages<S: Scalar, const N: usize>(
     grid: &mut Grid<S>,
     scratch: &mut [S; FFT_LEN],
     saved: usize,
     h: &Harmonics<N>,
-    from: Option<&Placed<N>>,
-    to: &Placed<N>,
+    phases: &[Option<StagePhase>; N],
+    level: f64,
 ) {
-    let first = grid.cell_time(0);
-    let was = from.map(|p| (p.stages(h), p.level));
-    let placed = to.stages(h);
-    let now = placed.shares(first);
-    let before = was
-        .iter()
-        .flat_map(|(w, _)| w.shares(first))
-        .chain(core::iter::repeat([0.0; N]));
-    let level = to.level - was.map_or(0.0, |(_, l)| l);
-    for (slot, (now, before)) in scratch.iter_mut().zip(now.zip(before)).take(saved) {
-        *slot = S::from_f64(now.iter().sum::<f64>() - before.iter().sum::<f64>() + level);
+    let mut placed = *h;
+    placed.clear(0);
+    for (s, phase) in phases.iter().enumerate().skip(1) {
+        match phase {
+            Some(found) => placed.shift(s, found.shift_s),
+            None => placed.clear(s),
+        }
+    }
+    let shares = placed.shares(grid.cell_time(0));
+    for (slot, share) in scratch.iter_mut().zip(shares).take(saved) {
+        *slot = S::from_f64(share.iter().sum::<f64>() + level);
     }
     shift_cells_by_scratch(grid, scratch, saved);
 }
@@ -1168,70 +1110,6 @@ mod tests {
         );
         std::println!("placed at {retried} s with the retry, {once} s without");
         assert!(once < retried, "{once} {retried}");
-    }
-
-    #[test]
-    fn without_phase_confirm_the_first_clear_search_ends_it() {
-        // Noise-free, the 155 s stage's phase is clear at the first search
-        // that picks one: it is put back there at once either way (the
-        // stage predicts from then on); with the addition the search runs
-        // once more and ends when the next cell agrees.
-        let g = learned();
-        let phase = 20_000.0;
-        let search = |config| {
-            let (mut r, _, _) = restored_into(&g, config, index(phase));
-            let (mut first_placed, mut t) = (None, 0.0);
-            while r.restore.phase_search.is_some() || t == 0.0 {
-                r.observe(t, Some(gear(t + phase)), 0.0, 10.0, 2.0);
-                let gates = r.restore.fit_gates(&r.gates);
-                if first_placed.is_none() && gates[1] > 0.0 {
-                    first_placed = Some(t);
-                }
-                t += 2.0;
-            }
-            (first_placed.unwrap(), t - 2.0)
-        };
-        let (confirmed, once) = (*g.config(), without(&g, "phase_confirm"));
-        let ((placed, ended), (placed_once, ended_once)) = (search(confirmed), search(once));
-        std::println!("placed at {placed} s, search ended at {ended} s; without: {placed_once} s");
-        assert_eq!(placed, placed_once);
-        assert_eq!(ended_once, placed_once);
-        assert!(ended > placed && ended <= placed + 10.0, "{placed} {ended}");
-    }
-
-    #[test]
-    fn a_placement_moved_is_the_placement_made_there_at_once() {
-        // Put back at one shift and then moved to another (the next cell
-        // picked it), the restored cells are those put back at the second.
-        let g = learned();
-        let cells = |moves: &[f64]| {
-            let (mut r, _, _) = restored_into(&g, *g.config(), index(20_000.0));
-            r.observe(0.0, Some(gear(20_000.0)), 0.0, 10.0, 2.0);
-            let (saved, h) = r.restore.phase_search.unwrap().stages.unwrap();
-            let mut from = None;
-            for &shift in moves {
-                let to = super::Placed {
-                    shifts: [None, Some(shift)],
-                    level: shift / 100.0,
-                };
-                super::put_back_stages(&mut r.grid, &mut r.scratch, saved, &h, from.as_ref(), &to);
-                from = Some(to);
-            }
-            (0..saved)
-                .map(|i| r.grid.cell(i).0)
-                .collect::<std::vec::Vec<f32>>()
-        };
-        let (moved, at_once) = (cells(&[100.0, 40.0]), cells(&[40.0]));
-        let worst = moved
-            .iter()
-            .zip(&at_once)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f32::max);
-        assert!(worst < 1e-4, "{worst}");
-        assert!(moved
-            .iter()
-            .zip(&cells(&[100.0]))
-            .any(|(a, b)| (a - b).abs() > 0.1));
     }
 
     #[test]

@@ -7,10 +7,7 @@
 //! multiple) of a known stage is admitted once the data spans
 //! [`HARMONIC_BEATS`] beat periods against that harmonic: it is then a line
 //! of its own, a gear a few percent off the worm's k-th harmonic, not the
-//! harmonic itself. A peak stronger than a known stage's line is not that
-//! stage's harmonic nor its fundamental (a gear's harmonics are weaker than
-//! its fundamental): only the known period itself guards it. A found stage
-//! then follows its peak in a band around
+//! harmonic itself. A found stage then follows its peak in a band around
 //! its own period; its evidence gate opens with the peak's amplitude
 //! relative to the worm's.
 
@@ -180,19 +177,8 @@ fn strongest_peak<S: Scalar>(
         let power = spectrum.power(k);
         power > spectrum.power(k.saturating_sub(d))
             && power > spectrum.power(k + d)
-            && !(0..known.len()).any(|i| {
-                // A line stronger than a known one is not its harmonic, nor
-                // the fundamental of it (gear errors' harmonics are weaker
-                // than their fundamental): it is refused only at the known
-                // period itself (`stronger_fundamental`).
-                let line_power = spectrum.power(libm::round(period_bin(lines[i])) as usize);
-                if adds.stronger_fundamental && power > line_power {
-                    (known[i] / p - 1.0).abs() <= width
-                } else {
-                    let (known, lines) = (&known[i..=i], &lines[i..=i]);
-                    notched(p, known, lines, span_s, width) || commensurate(p, known, lines, span_s)
-                }
-            })
+            && !notched(p, known, lines, span_s, width)
+            && !commensurate(p, known, lines, span_s)
     })
 }
 
@@ -874,24 +860,6 @@ mod tests {
         );
     }
 
-    #[test]
-    fn without_stronger_fundamental_a_stage_on_a_harmonic_keeps_its_fundamental_out() {
-        // Stage 1 found on a belt's third harmonic (136.5 s, bin 150); the
-        // belt's own line (409.6 s, bin 50) is six times as strong. With
-        // the addition stage 2 finds the belt; without, stage 1 notches its
-        // multiples and the belt stays out.
-        let buf = lines(&[(150, 400.0), (50, 2500.0)]);
-        let stage_2 = |adds: &Additions| {
-            let mut d: Discovery<3> = Discovery::new([None; 3]);
-            d.restore(1, true, 0.5, 0);
-            let mut trackers = tracked([0.0, bin_period(150.0), 0.0]);
-            scan_scripted(&mut d, &mut trackers, &buf, 10240.0, adds);
-            d.saved(2).0.then_some(trackers[2].period_s)
-        };
-        assert_eq!(stage_2(&Additions::ALL), Some(bin_period(50.0)));
-        assert_eq!(stage_2(&without("stronger_fundamental")), None);
-    }
-
     /// Stage 1's period and peak after one scan of `buf`, the stage found
     /// at 182.9 s (bin 112) with smoothed amplitude ratio `ratio`.
     fn followed(
@@ -948,9 +916,7 @@ mod tests {
 
     #[test]
     fn without_follow_past_an_ungated_later_stage_notches_a_line() {
-        // Stage 2, ungated, at twice stage 1's period, where there is no
-        // line: a period without a line guards nothing under
-        // `stronger_fundamental`, so that is off too.
+        // Stage 2, ungated, at twice stage 1's period.
         let buf = lines(&[(112, 400.0)]);
         let peak = |adds: &Additions| {
             let mut d: Discovery<3> = Discovery::new([None; 3]);
@@ -961,13 +927,7 @@ mod tests {
             d.stages[1].peak_period_s
         };
         assert_eq!(peak(&Additions::ALL), Some(bin_period(112.0)));
-        let mut neither = without("follow_past");
-        neither.stronger_fundamental = false;
-        assert_eq!(peak(&neither), None);
-        assert_eq!(
-            peak(&without("stronger_fundamental")),
-            Some(bin_period(112.0))
-        );
+        assert_eq!(peak(&without("follow_past")), None);
     }
 
     #[test]

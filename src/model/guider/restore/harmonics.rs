@@ -302,17 +302,6 @@ impl<const N: usize> Harmonics<N> {
         share(coeffs, libm::cos(theta), libm::sin(theta))
     }
 
-    /// Whether shifts `a` and `b` of stage `s` place it at nearly the same
-    /// phase: less than an eighth of its period apart, nearer than any
-    /// rival phase the F-test of [`Harmonics::phase`] weighs.
-    pub(super) fn same_phase(&self, s: usize, a: f64, b: f64) -> bool {
-        let Some(&period) = self.periods.get(s) else {
-            return false;
-        };
-        let apart = (a - b).abs() % period;
-        apart.min(period - apart) < period / 8.0
-    }
-
     /// Whether any harmonic of stage `s` was fitted.
     pub(super) fn has_stage(&self, s: usize) -> bool {
         self.coeffs
