@@ -33,19 +33,18 @@ fn goals_with_the_gear_moved_while_off() {
     check(&rows, "restored worse than cold", |r| {
         r.restored_first30 <= r.cold_first30 && r.restored_index_first30 <= r.cold_first30
     });
-    // Without an index: the goal is 0.85 x cold on C5-C8 noise-free;
-    // measured 0.50-0.67 (with the phase search; 0.73-0.81 without).
-    check(&rows, "restored > 0.75 x cold on C5-C8", |r| {
+    // Without an index: the goal, 0.85 x cold on C5-C8 noise-free, is the
+    // bar; measured 0.47-0.65 (with the phase search; 0.73-0.81 without).
+    check(&rows, "restored > 0.85 x cold on C5-C8", |r| {
         !(r.noise_px == 0.0 && ["C5", "C6", "C7", "C8"].contains(&r.case.as_str()))
-            || r.restored_first30 <= 0.75 * r.cold_first30
+            || r.restored_first30 <= 0.85 * r.cold_first30
     });
     // With the index (the worm's phase; each other stage's share of the
     // saved cells put back at the phase the new data shows, once it shows
-    // it clearly, and the stages held until the data resolves them): the
-    // goal, 1.15 x settled on every row, is the bar; measured 0.80-1.14
-    // over three night-2 phases (C6 noise-free the worst: its 155 s
-    // stage's phase takes 25-55 s of new data to show), with the pulse
-    // earned pulse share (saved with the model) at 1 px.
+    // it clearly): the goal, 1.15 x settled on every row, is the bar;
+    // measured 0.93-1.12 over three night-2 phases (C6 and C8 the worst:
+    // a stage's phase takes 25-55 s of new data to show), with
+    // the earned pulse share (saved with the model) at 1 px.
     check(&rows, "index > 1.15 x settled", |r| {
         r.restored_index_first30 <= 1.15 * r.settled
     });
@@ -58,7 +57,7 @@ fn goals_with_the_gear_parked() {
         r.restored_first30 <= r.cold_first30 && r.restored_index_first30 <= r.cold_first30
     });
     // Every phase carries over: the goal, within 1.15 x settled on every
-    // row (measured 0.72-1.06; 1 px with the earned share saved with
+    // row (measured 0.77-1.06; 1 px with the earned share saved with
     // the model).
     check(&rows, "park > 1.15 x settled", |r| {
         r.restored_index_first30 <= 1.15 * r.settled
