@@ -17,7 +17,7 @@
 use super::dot::BLOCK;
 
 /// `rows[r] · c` for the four rows, over the shortest slice.
-pub fn dot_rows(rows: [&[f32]; BLOCK], c: &[f32]) -> [f32; BLOCK] {
+pub fn dot_rows<'a>(rows: [&'a [f32]; BLOCK], c: &'a [f32]) -> [f32; BLOCK] {
     let n = rows.iter().fold(c.len(), |n, r| n.min(r.len()));
     let blocks = n / 4;
     let mut acc = [0.0f32; BLOCK];
@@ -69,13 +69,17 @@ pub fn dot_rows(rows: [&[f32]; BLOCK], c: &[f32]) -> [f32; BLOCK] {
     }
     // The last n % 4 elements continue the same sums, as the portable code
     // does (each sum in the same order). Checked slices, as indexing
-    // `row[k]` kept a bounds check.
-    let tail = 4 * blocks..n;
-    let c_tail = c.get(tail.clone()).unwrap_or(&[]);
-    for (a, row) in acc.iter_mut().zip(&rows) {
-        for (&x, &ck) in row.get(tail.clone()).unwrap_or(&[]).iter().zip(c_tail) {
-            *a += x * ck;
-        }
+    // `row[k]` kept a bounds check; one pass per column for the four rows,
+    // so that the loop's overhead is paid once per column, not per row,
+    // without relying on the compiler to unroll it.
+    let from = 4 * blocks;
+    let tail = |s: &'a [f32]| s.get(from..n).unwrap_or(&[]);
+    let [r0, r1, r2, r3] = rows.map(tail);
+    for ((((&ck, &x0), &x1), &x2), &x3) in tail(c).iter().zip(r0).zip(r1).zip(r2).zip(r3) {
+        acc[0] += x0 * ck;
+        acc[1] += x1 * ck;
+        acc[2] += x2 * ck;
+        acc[3] += x3 * ck;
     }
     acc
 }
