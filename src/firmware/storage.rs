@@ -221,9 +221,16 @@ pub type SnapshotBuffer = [u8; RECORD_MAX];
 
 static SNAPSHOT: StaticCell<SnapshotBuffer> = StaticCell::new();
 
-/// The snapshot buffer, once.
+/// The snapshot buffer, once. Zeroed where it lies: `try_init([0; ..])`
+/// built the 8 KiB on the stack first, the deepest the stack went.
 pub fn snapshot_buffer() -> Option<&'static mut SnapshotBuffer> {
-    SNAPSHOT.try_init([0; RECORD_MAX])
+    let slot = SNAPSHOT.try_uninit()?;
+    // SAFETY: zero bytes are a valid `[u8; N]`; the slot is this call's
+    // alone (`try_uninit` hands it out once) and is initialised after.
+    Some(unsafe {
+        slot.as_mut_ptr().write_bytes(0, 1);
+        slot.assume_init_mut()
+    })
 }
 
 /// Saves the learned model, and with it the worm index's last pass if
