@@ -29,6 +29,19 @@ fn build_stamp() -> (String, String) {
     }
 }
 
+/// The MEMORY block of the selected chip, which memory.x includes (it
+/// documents the layouts).
+fn board_memory() -> String {
+    let ram_kib = if env::var_os("CARGO_FEATURE_STM32L475VG").is_some() {
+        96
+    } else {
+        128
+    };
+    format!(
+        "MEMORY\n{{\n  FLASH : ORIGIN = 0x08000000, LENGTH = 256K\n  RAM   : ORIGIN = 0x20000000, LENGTH = {ram_kib}K\n}}\n"
+    )
+}
+
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
     for git in [".git/HEAD", ".git/refs/heads"] {
@@ -48,6 +61,7 @@ fn main() {
     }
     let out = PathBuf::from(env::var_os("OUT_DIR").expect("OUT_DIR"));
     fs::copy("memory.x", out.join("memory.x")).expect("copy memory.x");
+    fs::write(out.join("board-memory.x"), board_memory()).expect("write board-memory.x");
     println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rustc-link-arg-bins=--nmagic");
     println!("cargo:rustc-link-arg-bins=-Tlink.x");

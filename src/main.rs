@@ -11,10 +11,10 @@
 //!   `step_tick_hz`): each axis's `AxisStepper::tick` says what to change
 //!   on STEP and DIR; `hal`'s `StepAxis` changes it.
 //! - **ST4 edges** (`EXTI9_5`/`EXTI15_10`, `P1`, in `hal::st4`): each edge is
-//!   timestamped in its interrupt and queued. embassy's time driver (`TIM5`)
-//!   is at `P1` too.
+//!   timestamped in its interrupt and queued. embassy's time driver (`TIM5`;
+//!   SysTick on the L475 board) is at `P1` too.
 //! - **Guiding task** ([`firmware::guiding_task`], on an `InterruptExecutor`
-//!   on the otherwise unused `SDIO` vector at `P2`): sleeps until an edge or
+//!   on the otherwise unused `SPI3` vector at `P2`): sleeps until an edge or
 //!   `ControlLoop::next_wake_us`, then hands the queued edges, the time, the
 //!   RA step count and the newest feed-forward to `ControlLoop::wake`, sets
 //!   the rates it returns, moves completed frames to the learning task while
@@ -64,8 +64,6 @@ const DEC_DIR_FORWARD_HIGH: bool = true;
 /// NVIC priority of the high-priority executor (below the step tick `P0`,
 /// the ST4 EXTI and the time driver `P1`).
 const EXECUTOR_HIGH_PRIORITY: Priority = Priority::P2;
-/// NVIC priority of embassy's time driver (TIM5); `P0` is the step tick's.
-const TIME_DRIVER_PRIORITY: Priority = Priority::P1;
 /// Timeout of the independent watchdog, µs: above the longest flash
 /// sector erase (2 s, the datasheet's maximum), during which every flash
 /// read, the guiding task's that feeds the watchdog included, stalls.
@@ -81,7 +79,6 @@ async fn main(spawner: Spawner) {
     unsafe { mkgp_mount::safety::fault_entry::install_stack_guard(RAM_ORIGIN) };
     let p = hal::clocks::init();
     let last_reset = fault::take_last_reset();
-    interrupt::TIM5.set_priority(TIME_DRIVER_PRIORITY);
     let board = hal::take_board!(p);
     defmt::info!(
         "{} {} up, SYSCLK {} Hz",
@@ -241,8 +238,8 @@ fn start(spawner: Spawner, hw: Hardware, config: MountConfig, boot: Boot) -> Res
     step_tick::start(ticker, ra, dec, &mount, counts);
 
     let edges = hal::st4::start(st4_pins, firmware::guiding_task::allow_edge);
-    interrupt::SDIO.set_priority(EXECUTOR_HIGH_PRIORITY);
-    let high = EXECUTOR_HIGH.start(interrupt::SDIO);
+    interrupt::SPI3.set_priority(EXECUTOR_HIGH_PRIORITY);
+    let high = EXECUTOR_HIGH.start(interrupt::SPI3);
     // From here on a hung guiding task resets the board.
     let watchdog = hal::reset::Watchdog::start(iwdg, WATCHDOG_TIMEOUT_US);
     match guiding_task(edges, mount, watchdog, reset_cause, has_store) {

@@ -8,24 +8,26 @@
 //! pulses can later come from hardware timers. Pins used by the board itself
 //! (SWD, crystal, USB, on-board peripherals) are left alone.
 //!
-//! | signal | Black Pill F411CE | Nucleo-F446RE | Discovery F407VG |
-//! |---|---|---|---|
-//! | ST4 RA+ (west)  | PB12 (EXTI12) | PC8 (EXTI8), CN10-2 | PD8 (EXTI8) |
-//! | ST4 RA- (east)  | PB13 (EXTI13) | PC9 (EXTI9), CN10-1 | PD9 (EXTI9) |
-//! | ST4 Dec+ (north)| PB14 (EXTI14) | PC10 (EXTI10), CN7-1 | PD10 (EXTI10) |
-//! | ST4 Dec- (south)| PB15 (EXTI15) | PC11 (EXTI11), CN7-2 | PD11 (EXTI11) |
-//! | RA STEP         | PA8 (TIM1_CH1) | PA8 (TIM1_CH1), D7 | PE9 (TIM1_CH1) |
-//! | RA DIR          | PB0 | PB4, D5 | PE7 |
-//! | RA ENABLE (low) | PB1 | PB5, D4 | PE8 |
-//! | Dec STEP        | PB6 (TIM4_CH1) | PB6 (TIM4_CH1), D10 | PC6 (TIM3_CH1 / TIM8_CH1) |
-//! | Dec DIR         | PB4 | PB10, D6 | PE10 |
-//! | Dec ENABLE (low)| PB5 | PA9, D8 | PE12 |
-//! | status LED      | PC13 (active low) | PA5 = LD2, D13 (active high) | PD12 = LD4 green (active high) |
-//! | worm index (optional, low at the mark) | PA1 (EXTI1) | PA1 (EXTI1), A1 | PA1 (EXTI1) |
+//! | signal | Black Pill F411CE | Nucleo-F446RE | Discovery F407VG | B-L475E-IOT01A (Arduino header) |
+//! |---|---|---|---|---|
+//! | ST4 RA+ (west)  | PB12 (EXTI12) | PC8 (EXTI8), CN10-2 | PD8 (EXTI8) | PB8 (EXTI8), D15 |
+//! | ST4 RA- (east)  | PB13 (EXTI13) | PC9 (EXTI9), CN10-1 | PD9 (EXTI9) | PB9 (EXTI9), D14 |
+//! | ST4 Dec+ (north)| PB14 (EXTI14) | PC10 (EXTI10), CN7-1 | PD10 (EXTI10) | PD14 (EXTI14), D2 |
+//! | ST4 Dec- (south)| PB15 (EXTI15) | PC11 (EXTI11), CN7-2 | PD11 (EXTI11) | PA15 (EXTI15), D9 |
+//! | RA STEP         | PA8 (TIM1_CH1) | PA8 (TIM1_CH1), D7 | PE9 (TIM1_CH1) | PB4 (TIM3_CH1), D5 |
+//! | RA DIR          | PB0 | PB4, D5 | PE7 | PB0, D3 |
+//! | RA ENABLE (low) | PB1 | PB5, D4 | PE8 | PA4, D7 |
+//! | Dec STEP        | PB6 (TIM4_CH1) | PB6 (TIM4_CH1), D10 | PC6 (TIM3_CH1 / TIM8_CH1) | PA2 (TIM15_CH1), D10 |
+//! | Dec DIR         | PB4 | PB10, D6 | PE10 | PA7, D11 |
+//! | Dec ENABLE (low)| PB5 | PA9, D8 | PE12 | PA6, D12 |
+//! | status LED      | PC13 (active low) | PA5 = LD2, D13 (active high) | PD12 = LD4 green (active high) | PB14 = LED2 green (active high) |
+//! | worm index (optional, low at the mark) | PA1 (EXTI1) | PA1 (EXTI1), A1 | PA1 (EXTI1) | PC4 (EXTI4), A1 |
 //!
 //! The command port's USB and UART pins are in [`crate::serial`]'s table.
 //! Left free on purpose: SPI1 PA5-PA7 on the Black Pill (driver
-//! configuration), and the audio codec and accelerometer on the Discovery.
+//! configuration), the audio codec and accelerometer on the Discovery, and
+//! the B-L475E-IOT01A's sensors, radios and QSPI flash (its Arduino header
+//! carries the mount's signals; D0/D1 are port 1's UART).
 //!
 //! The types below name the concrete embassy peripherals of the selected
 //! chip; [`take_board!`](crate::take_board) moves them out of the
@@ -102,6 +104,29 @@ pub mod pins {
     pub const LED_ACTIVE_LOW: bool = false;
 }
 
+/// Concrete pin and EXTI channel types of the selected board.
+#[cfg(feature = "stm32l475vg")]
+pub mod pins {
+    use embassy_stm32::peripherals as p;
+    pub type St4RaPlus = p::PB8;
+    pub type St4RaPlusExti = p::EXTI8;
+    pub type St4RaMinus = p::PB9;
+    pub type St4RaMinusExti = p::EXTI9;
+    pub type St4DecPlus = p::PD14;
+    pub type St4DecPlusExti = p::EXTI14;
+    pub type St4DecMinus = p::PA15;
+    pub type St4DecMinusExti = p::EXTI15;
+    pub type RaStep = p::PB4;
+    pub type RaDir = p::PB0;
+    pub type RaEnable = p::PA4;
+    pub type DecStep = p::PA2;
+    pub type DecDir = p::PA7;
+    pub type DecEnable = p::PA6;
+    pub type Led = p::PB14;
+    /// The LED lights when its pin is low.
+    pub const LED_ACTIVE_LOW: bool = false;
+}
+
 pub use pins::LED_ACTIVE_LOW;
 
 /// The four ST4 inputs with their EXTI channels.
@@ -140,7 +165,7 @@ pub struct PortPins {
 }
 
 /// The command port's pins on this board (`crate::serial` has the map).
-#[cfg(feature = "stm32f446re")]
+#[cfg(any(feature = "stm32f446re", feature = "stm32l475vg"))]
 pub struct PortPins {
     pub vcp: crate::serial::VcpPins,
     pub aux: crate::serial::AuxPins,
@@ -302,6 +327,55 @@ macro_rules! take_board {
                     uart: $p.USART2,
                     tx: $p.PA2,
                     rx: $p.PA3,
+                },
+            },
+        }
+    };
+}
+
+/// Moves the board's pins out of an `embassy_stm32::Peripherals` binding and
+/// returns a [`Board`](crate::board::Board); the other peripherals stay in
+/// the binding (a partial move).
+#[cfg(feature = "stm32l475vg")]
+#[macro_export]
+macro_rules! take_board {
+    ($p:ident) => {
+        $crate::board::Board {
+            st4: $crate::board::St4Pins {
+                ra_plus: $p.PB8,
+                ra_plus_exti: $p.EXTI8,
+                ra_minus: $p.PB9,
+                ra_minus_exti: $p.EXTI9,
+                dec_plus: $p.PD14,
+                dec_plus_exti: $p.EXTI14,
+                dec_minus: $p.PA15,
+                dec_minus_exti: $p.EXTI15,
+            },
+            ra: $crate::board::AxisPins {
+                step: $p.PB4,
+                dir: $p.PB0,
+                enable: $p.PA4,
+            },
+            dec: $crate::board::AxisPins {
+                step: $p.PA2,
+                dir: $p.PA7,
+                enable: $p.PA6,
+            },
+            led: $p.PB14,
+            index: $crate::worm_index::IndexPins {
+                pin: $p.PC4,
+                exti: $p.EXTI4,
+            },
+            ports: $crate::board::PortPins {
+                vcp: $crate::serial::UartPins {
+                    uart: $p.USART1,
+                    tx: $p.PB6,
+                    rx: $p.PB7,
+                },
+                aux: $crate::serial::UartPins {
+                    uart: $p.UART4,
+                    tx: $p.PA0,
+                    rx: $p.PA1,
                 },
             },
         }

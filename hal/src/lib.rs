@@ -1,7 +1,8 @@
 //! Board support for the mkgp-mount firmware, on top of `embassy-stm32`.
 //!
 //! Select exactly one chip with a cargo feature (`stm32f411ce`,
-//! `stm32f446re` or `stm32f407vg`); the firmware forwards its own.
+//! `stm32f446re`, `stm32f407vg` or `stm32l475vg`); the firmware forwards
+//! its own.
 //!
 //! - [`board`]: the documented pin map of each supported board, and the
 //!   [`take_board!`] macro that moves those pins out of the `Peripherals`.
@@ -17,6 +18,8 @@
 //! - [`flash_map`], [`storage`]: where the store's sectors are, and the
 //!   flash driver that reaches them.
 //! - [`worm_index`]: the optional worm-index sensor's input.
+//! - `systick_time` (the L475 board only): SysTick as embassy-time's
+//!   driver and as the step tick's source.
 //!
 //! This crate knows the hardware only; what edges mean and how many steps to
 //! make is the `mkgp-mount` library's business, glued together in the
@@ -24,21 +27,27 @@
 //! cannot depend back on the library without a package cycle).
 //!
 //! Interrupt priorities (NVIC, lower number = more urgent): step tick `P0`;
-//! ST4 EXTI and embassy's time driver (TIM5) `P1`; the firmware's
+//! ST4 EXTI and embassy's time driver (TIM5, or SysTick on the L475) `P1`; the firmware's
 //! high-priority executor `P2`; thread mode below all of them.
 #![no_std]
 
 #[cfg(not(any(
     feature = "stm32f411ce",
     feature = "stm32f446re",
-    feature = "stm32f407vg"
+    feature = "stm32f407vg",
+    feature = "stm32l475vg"
 )))]
-compile_error!("mount-hal: select one chip feature: stm32f411ce, stm32f446re or stm32f407vg");
+compile_error!(
+    "mount-hal: select one chip feature: stm32f411ce, stm32f446re, stm32f407vg or stm32l475vg"
+);
 
 #[cfg(any(
     all(feature = "stm32f411ce", feature = "stm32f446re"),
     all(feature = "stm32f411ce", feature = "stm32f407vg"),
+    all(feature = "stm32f411ce", feature = "stm32l475vg"),
     all(feature = "stm32f446re", feature = "stm32f407vg"),
+    all(feature = "stm32f446re", feature = "stm32l475vg"),
+    all(feature = "stm32f407vg", feature = "stm32l475vg"),
 ))]
 compile_error!("mount-hal: select only one chip feature");
 
@@ -50,6 +59,8 @@ pub mod serial;
 pub mod st4;
 pub mod stepper;
 pub mod storage;
+#[cfg(feature = "stm32l475vg")]
+pub mod systick_time;
 pub mod worm_index;
 
 /// Re-exported so that users of the board types need not name the version.

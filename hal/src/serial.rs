@@ -6,6 +6,7 @@
 //! | Black Pill F411CE | USB CDC-ACM on the USB-C socket (PA11/PA12) | USART1: TX PA9, RX PA10 |
 //! | Nucleo-F446RE | USART2 (PA2/PA3) to the ST-LINK's virtual COM port, 9600 8N1 | USART6: TX PC6 (CN10-4), RX PC7 (CN10-19, D9) |
 //! | Discovery F407VG | USB CDC-ACM on the micro-USB socket CN5 (OTG FS, PA11/PA12) | USART2: TX PA2, RX PA3 |
+//! | B-L475E-IOT01A | USART1 (PB6/PB7) to the ST-LINK's virtual COM port, 9600 8N1 | UART4: TX PA0 (D1), RX PA1 (D0) |
 //!
 //! Port 1 is for a Bluetooth or WiFi serial bridge (HC-05, ESP32 with a
 //! serial bridge): its TX goes to the bridge's RX and back, and the grounds
@@ -72,6 +73,10 @@ macro_rules! uart_buffers {
 fn uart_config() -> usart::Config {
     let mut config = usart::Config::default();
     config.baudrate = UART_BAUD;
+    // The reader wakes for every byte, not only at a half-full buffer or
+    // an idle line: a command is read as it arrives (and QEMU's UART
+    // model never reports an idle line).
+    config.eager_reads = Some(1);
     config
 }
 
@@ -110,6 +115,21 @@ mod chip {
     pub type AuxRx = peripherals::PA3;
 }
 
+#[cfg(feature = "stm32l475vg")]
+mod chip {
+    use super::*;
+    bind_interrupts!(pub struct Irqs {
+        USART1 => usart::BufferedInterruptHandler<peripherals::USART1>;
+        UART4 => usart::BufferedInterruptHandler<peripherals::UART4>;
+    });
+    pub type AuxUart = peripherals::UART4;
+    pub type AuxTx = peripherals::PA0;
+    pub type AuxRx = peripherals::PA1;
+    pub type VcpUart = peripherals::USART1;
+    pub type VcpTx = peripherals::PB6;
+    pub type VcpRx = peripherals::PB7;
+}
+
 #[cfg(feature = "stm32f446re")]
 mod chip {
     use super::*;
@@ -120,6 +140,9 @@ mod chip {
     pub type AuxUart = peripherals::USART6;
     pub type AuxTx = peripherals::PC6;
     pub type AuxRx = peripherals::PC7;
+    pub type VcpUart = peripherals::USART2;
+    pub type VcpTx = peripherals::PA2;
+    pub type VcpRx = peripherals::PA3;
 }
 
 /// Sets the NVIC priority of the transports' interrupts (embassy leaves
@@ -136,6 +159,10 @@ pub fn set_interrupt_priority(priority: embassy_stm32::interrupt::Priority) {
     }
     #[cfg(feature = "stm32f446re")]
     for irq in [interrupt::USART2, interrupt::USART6] {
+        irq.set_priority(priority);
+    }
+    #[cfg(feature = "stm32l475vg")]
+    for irq in [interrupt::USART1, interrupt::UART4] {
         irq.set_priority(priority);
     }
 }
@@ -175,12 +202,13 @@ pub fn start_aux(pins: AuxPins) -> Option<BufferedUart<'static>> {
     start_uart(pins, uart_buffers!()?)
 }
 
-/// Port 0 on the Nucleo: USART2 to the ST-LINK's virtual COM port.
-#[cfg(feature = "stm32f446re")]
-pub type VcpPins = UartPins<peripherals::USART2, peripherals::PA2, peripherals::PA3>;
+/// Port 0 on the Nucleo and the B-L475E-IOT01A: a UART to the ST-LINK's
+/// virtual COM port.
+#[cfg(any(feature = "stm32f446re", feature = "stm32l475vg"))]
+pub type VcpPins = UartPins<chip::VcpUart, chip::VcpTx, chip::VcpRx>;
 
-/// Starts port 0 on the Nucleo (see [`start_aux`]).
-#[cfg(feature = "stm32f446re")]
+/// Starts port 0 on the Nucleo and the B-L475E-IOT01A (see [`start_aux`]).
+#[cfg(any(feature = "stm32f446re", feature = "stm32l475vg"))]
 pub fn start_vcp(pins: VcpPins) -> Option<BufferedUart<'static>> {
     start_uart(pins, uart_buffers!()?)
 }

@@ -13,11 +13,13 @@
 //! once the configuration has been validated.
 //!
 //! Timer choice: TIM2 (32-bit general-purpose, own interrupt vector) exists on
-//! all three chips. embassy's time driver is pinned to TIM5 with the
-//! `time-driver-tim5` feature (`time-driver-any` would pick TIM9 on these
-//! chips today, whose vector is shared with TIM1's break interrupt); TIM1,
-//! TIM3, TIM4 and TIM8, whose channel-1 pins are the STEP outputs, stay free
-//! for hardware step generation later.
+//! all four chips; on the L475 board SysTick pends its vector instead
+//! (`systick_time`), and its counter stays off. On the F4 boards embassy's
+//! time driver is pinned to TIM5 with the `time-driver-tim5` feature
+//! (`time-driver-any` would pick TIM9 on these chips today, whose vector is
+//! shared with TIM1's break interrupt); TIM1, TIM3, TIM4 and TIM8, whose
+//! channel-1 pins are the STEP outputs, stay free for hardware step
+//! generation later.
 //!
 //! The interrupt handler itself lives in the firmware
 //! (`src/firmware/step_tick.rs`, `fn TIM2`):
@@ -28,6 +30,7 @@ use embassy_stm32::gpio::{Level, Output, Pin, Speed};
 use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_stm32::peripherals::TIM2;
+#[cfg(not(feature = "stm32l475vg"))]
 use embassy_stm32::timer::low_level::{RoundTo, Timer};
 use embassy_stm32::Peri;
 
@@ -110,8 +113,9 @@ pub unsafe fn force_drivers_off() {
 pub enum TickError {
     /// The timer clock is not a whole multiple of the requested tick rate, so
     /// the tick would not be exact and tracking would drift. Pick a rate that
-    /// divides `timer_clock_hz` (50 kHz divides all three boards' 96, 90 and
-    /// 84 MHz).
+    /// divides `timer_clock_hz` (50 kHz divides the F4 boards' 96, 90 and
+    /// 84 MHz). On the L475 board the tick is SysTick's fixed rate, given as
+    /// `timer_clock_hz`: the tick rate must be that.
     Inexact { tick_hz: u32, timer_clock_hz: u32 },
     /// Zero, or faster than one tick per 200 timer clocks (the interrupt
     /// would eat the CPU).
@@ -120,11 +124,13 @@ pub enum TickError {
 
 /// The periodic step tick on [`StepTimer`] (TIM2), update interrupt at
 /// [`TICK_PRIORITY`].
+#[cfg(not(feature = "stm32l475vg"))]
 pub struct StepTicker {
     timer: Timer<'static, StepTimer>,
     tick_hz: u32,
 }
 
+#[cfg(not(feature = "stm32l475vg"))]
 impl StepTicker {
     /// Sets the timer up for exactly `tick_hz` update interrupts per second
     /// (not started).
@@ -181,4 +187,53 @@ impl StepTicker {
     pub fn ack(&self) {
         self.timer.clear_update_interrupt();
     }
+}
+
+/// The periodic step tick on the `TIM2` vector, pended by SysTick
+/// (`systick_time`) at its fixed rate, at [`TICK_PRIORITY`]; TIM2's
+/// counter stays off.
+#[cfg(feature = "stm32l475vg")]
+pub struct StepTicker {
+    _tim: Peri<'static, StepTimer>,
+}
+
+#[cfg(feature = "stm32l475vg")]
+impl StepTicker {
+    /// Takes the vector's timer; `tick_hz` must be SysTick's rate.
+    pub fn new(tim: Peri<'static, StepTimer>, tick_hz: u32) -> Result<Self, TickError> {
+        use crate::systick_time::TICK_HZ;
+        if tick_hz != TICK_HZ {
+            return Err(TickError::Inexact {
+                tick_hz,
+                timer_clock_hz: TICK_HZ,
+            });
+        }
+        Ok(Self { _tim: tim })
+    }
+
+    /// The tick rate, exactly.
+    pub fn tick_hz(&self) -> u32 {
+        crate::systick_time::TICK_HZ
+    }
+
+    /// Starts ticking: sets the NVIC priority, enables the vector and lets
+    /// SysTick pend it.
+    pub fn start(&self) {
+        interrupt::TIM2.set_priority(TICK_PRIORITY);
+        interrupt::TIM2.unpend();
+        // SAFETY: the firmware defines the TIM2 handler, and everything it
+        // touches is initialised before start() is called.
+        unsafe { interrupt::TIM2.enable() };
+        crate::systick_time::set_step_tick(true);
+    }
+
+    /// Stops ticking (the outputs keep their levels).
+    pub fn stop(&self) {
+        crate::systick_time::set_step_tick(false);
+        interrupt::TIM2.disable();
+    }
+
+    /// Nothing to acknowledge: the vector is pended, not raised by a flag.
+    #[inline]
+    pub fn ack(&self) {}
 }

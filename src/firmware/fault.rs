@@ -82,13 +82,13 @@ unsafe extern "C" fn on_hard_fault(frame: *const u32) -> ! {
 pub fn take_last_reset() -> LastReset {
     let f = hal::reset::take_reset_flags();
     let cause = ResetCause::from_flags(ResetFlags {
-        power_on: f.porrstf(),
-        brown_out: f.borrstf(),
-        pin: f.padrstf(),
-        software: f.sftrstf(),
-        independent_watchdog: f.wdgrstf(),
-        window_watchdog: f.wwdgrstf(),
-        low_power: f.lpwrrstf(),
+        power_on: f.power_on,
+        brown_out: f.brown_out,
+        pin: f.pin,
+        software: f.software,
+        independent_watchdog: f.independent_watchdog,
+        window_watchdog: f.window_watchdog,
+        low_power: f.low_power,
     });
     // SAFETY: no fault path runs yet; the words may be garbage after a
     // power-on, which `decode` refuses.

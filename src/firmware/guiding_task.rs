@@ -36,10 +36,10 @@ use crate::firmware::step_tick::{self, set_rates, step_counts};
 
 pub static EXECUTOR_HIGH: InterruptExecutor = InterruptExecutor::new();
 
-/// The high-priority executor's vector: SDIO exists on all three chips and
-/// none of the boards uses it.
+/// The high-priority executor's vector: SPI3 exists on all four chips and
+/// the firmware leaves it unused.
 #[interrupt]
-unsafe fn SDIO() {
+unsafe fn SPI3() {
     // SAFETY: the executor was started on this vector before it was enabled.
     unsafe { EXECUTOR_HIGH.on_interrupt() }
 }

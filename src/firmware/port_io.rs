@@ -163,10 +163,10 @@ pub fn start(
         spawner.spawn(usb_device(device).map_err(|_| "USB device task")?);
         usb_port(rx, tx).map_err(|_| "USB port task")?
     };
-    #[cfg(feature = "stm32f446re")]
+    #[cfg(any(feature = "stm32f446re", feature = "stm32l475vg"))]
     let port0 = {
-        let uart = hal::serial::start_vcp(pins.vcp).ok_or("USART2")?;
-        uart_port(uart, &LINKS[0]).map_err(|_| "USART2 task")?
+        let uart = hal::serial::start_vcp(pins.vcp).ok_or("UART port 0")?;
+        uart_port(uart, &LINKS[0]).map_err(|_| "UART port 0 task")?
     };
     spawner.spawn(port0);
     let aux = hal::serial::start_aux(pins.aux).ok_or("UART port 1")?;
