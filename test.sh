@@ -35,8 +35,8 @@
 #   6. board:        the whole binary booted in QEMU's b-l475e-iot01a:
 #                    target-tests/board/build.sh, then
 #                    MKGP_BOARD_ELF=<its ELF> cargo test --release --test board
-#                    in host-tests (start-up, tracking, ST4, the stack;
-#                    about 4 minutes)
+#                    in host-tests (start-up, tracking, ST4, guiding that
+#                    the model learns from, the stack; about 5 minutes)
 #
 # Exits non-zero on the first failure.
 set -euo pipefail

@@ -21,6 +21,8 @@
 //!   lines, moves its axis its way by the guide rate over the pulse's
 //!   length (as the firmware timed it) within 2 %, and leaves the other
 //!   axis alone;
+//! - guiding: RA pulses at a guide cadence become guide frames, and the
+//!   learner learns at least one of every two;
 //! - the stack: its high-water mark (the firmware paints it at reset)
 //!   leaves at least 25 % of it.
 //!
@@ -341,6 +343,19 @@ fn next_status(board: &mut Board, after_s: f64) -> Status {
     status(&line).unwrap()
 }
 
+/// RA pulses of the guiding phase.
+const GUIDE_PULSES: u32 = 20;
+
+/// The last value the log gave a counter line `key` (`group name value`).
+fn last_counter(board: &Board, key: &str) -> Option<f64> {
+    board
+        .lines()
+        .iter()
+        .rev()
+        .find(|l| l.text.starts_with(key))
+        .and_then(|l| number_after(&l.text, key))
+}
+
 fn have_qemu_l475() -> bool {
     Command::new("qemu-system-arm")
         .args(["-M", "help"])
@@ -461,6 +476,35 @@ fn the_binary_boots_tracks_and_obeys_st4_in_qemu() {
         statuses(&board).len() >= 6,
         "status lines: {:?}",
         statuses(&board)
+    );
+
+    // Guiding: short RA pulses, alternating in sign, one per guide cadence
+    // of the wall clock (a little more of emulated time), as a guider
+    // sends them. Each becomes a guide frame that the learner learns.
+    let learned_before = last_counter(&board, "model learned ").unwrap_or(0.0);
+    let (ra_plus, ra_minus) = (ST4[0].1, ST4[1].1);
+    for k in 0..GUIDE_PULSES {
+        let pin = if k % 2 == 0 { ra_plus } else { ra_minus };
+        board.set_pin(pin, false);
+        std::thread::sleep(Duration::from_millis(150));
+        board.set_pin(pin, true);
+        std::thread::sleep(Duration::from_millis(1850));
+        board.drain();
+    }
+    let line = board.wait_for("the model learning", Duration::from_secs(30), |l| {
+        l.text.starts_with("model learned ")
+            && number_after(&l.text, "model learned ")
+                .is_some_and(|n| n >= learned_before + f64::from(GUIDE_PULSES / 2))
+    });
+    let measured_frames = board
+        .lines()
+        .iter()
+        .filter(|l| l.text.starts_with("frame measured at gear "))
+        .count();
+    println!(
+        "guiding: {GUIDE_PULSES} RA pulses; {} (before them {learned_before}; {measured_frames} \
+         frames logged as measured in all)",
+        line.text
     );
 
     // The stack's high-water mark so far.
