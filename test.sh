@@ -36,7 +36,9 @@
 #                    target-tests/board/build.sh, then
 #                    MKGP_BOARD_ELF=<its ELF> cargo test --release --test board
 #                    in host-tests (start-up, tracking, ST4, guiding that
-#                    the model learns from, the stack; about 5 minutes)
+#                    the model learns from, the stack, INDI's
+#                    indi_lx200generic on the emulated USART; about 7
+#                    minutes)
 #
 # Exits non-zero on the first failure.
 set -euo pipefail

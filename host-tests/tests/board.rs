@@ -12,6 +12,9 @@
 //! loaded host, so every figure compares the firmware's own clock (the
 //! log's timestamps) with its own counters, never the wall clock.
 //!
+//! The command ports are QEMU ptys: port 0 (USART1) for INDI's driver,
+//! port 1 (UART4) for our own `:~` queries.
+//!
 //! Asserts, in one boot:
 //! - start-up reaches the loop: the log says the firmware is up and
 //!   tracking at the configuration's sidereal rate;
@@ -26,6 +29,17 @@
 //! - the stack: its high-water mark (the firmware paints it at reset)
 //!   leaves at least 25 % of it.
 //!
+//! And in another, INDI's `indi_lx200generic` on port 0: it connects
+//! within 5 s, syncs and reads the position back; W and E as a move and a
+//! stop (the driver's default) move RA at the guide rate within 1 % in
+//! the guide's middle, stop it (a step either way in the second after) and
+//! last no longer than the driver's wall-clock length; N, S, W and E as
+//! timed pulses (`:Mg`) move their axis by the guide rate x the length
+//! within 1 % and the other by at most 3 steps; the driver's coordinates
+//! show what the step counters moved (to the reply's second of time and
+//! arcsecond); and the guiding counters count 4 RA and 2 Dec pulses, all
+//! 6 from the port. Skipped without indiserver, as tests/indi.rs.
+//!
 //! Without `MKGP_BOARD_ELF` the test is skipped with a message (the plain
 //! `cargo test` of host-tests; test.sh runs it again with the binary, and
 //! under CI=true fails if QEMU cannot). With it, a QEMU without the machine
@@ -37,7 +51,12 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
+mod common;
+
+use common::lx200::{self, Indi, Own, Steps};
 use defmt_decoder::{DecodeError, Table};
+use mkgp_mount::counters::Counters;
+use mkgp_mount::mount::guiding::GuidingCounters;
 use object::{Object, ObjectSymbol};
 
 /// The QEMU machine, killed on drop.
@@ -57,9 +76,12 @@ struct Line {
     text: String,
 }
 
-/// The running board: its qtest connection and its log.
+/// The running board: its qtest connection, its log and its serial ports.
 struct Board {
     _qemu: Qemu,
+    /// The ptys of the command ports: port 0 (USART1, QEMU's first serial
+    /// device) and port 1 (UART4, its fourth).
+    ports: [PathBuf; 2],
     qtest: BufReader<UnixStream>,
     /// `_SEGGER_RTT`, the RTT control block.
     rtt: u64,
@@ -112,7 +134,8 @@ const ST4: [(&str, Pin); 4] = [
 ];
 
 impl Board {
-    fn boot(elf: &Path) -> Board {
+    /// Boots `elf`; `name` keeps this boot's files apart from another's.
+    fn boot(elf: &Path, name: &str) -> Board {
         let bytes = std::fs::read(elf).unwrap_or_else(|e| panic!("{}: {e}", elf.display()));
         let table = Table::parse(&bytes)
             .expect("the ELF's defmt table")
@@ -126,12 +149,12 @@ impl Board {
         };
         let rtt = symbol("_SEGGER_RTT");
         let stack = (symbol("_stack_end"), symbol("_stack_start"));
-        let dir = std::env::temp_dir().join(format!("mkgp-board-{}", std::process::id()));
+        let dir = std::env::temp_dir().join(format!("mkgp-board-{name}-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
         let socket = dir.join("qtest.sock");
         let listener = UnixListener::bind(&socket).unwrap();
-        let qemu = Qemu(
+        let mut qemu = Qemu(
             Command::new("qemu-system-arm")
                 .args(["-M", "b-l475e-iot01a", "-display", "none", "-accel", "tcg"])
                 .arg("-kernel")
@@ -139,16 +162,42 @@ impl Board {
                 .arg("-qtest")
                 .arg(format!("unix:{}", socket.display()))
                 .args(["-qtest-log", "/dev/null"])
-                .args(["-serial", "null", "-monitor", "none"])
+                .args(["-serial", "pty", "-serial", "null", "-serial", "null"])
+                .args(["-serial", "pty", "-monitor", "none"])
                 .arg("-D")
                 .arg(dir.join("qemu.log"))
                 .args(["-d", "guest_errors"])
                 .stdin(Stdio::null())
-                .stdout(Stdio::null())
+                .stdout(Stdio::piped())
                 .stderr(Stdio::inherit())
                 .spawn()
                 .expect("qemu-system-arm"),
         );
+        // QEMU names each pty on stdout ("char device redirected to
+        // /dev/pts/N (label serialK)"); the rest is passed on.
+        let stdout = qemu.0.stdout.take().expect("piped stdout");
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                match line
+                    .strip_prefix("char device redirected to ")
+                    .and_then(|rest| rest.split_once(" (label "))
+                {
+                    Some((path, label)) => {
+                        let _ = tx.send((label.trim_end_matches(')').to_string(), path.into()));
+                    }
+                    None => println!("{line}"),
+                }
+            }
+        });
+        let mut ptys = std::collections::HashMap::<String, PathBuf>::new();
+        while ptys.len() < 2 {
+            let (label, path) = rx
+                .recv_timeout(Duration::from_secs(20))
+                .expect("QEMU names its two ptys");
+            ptys.insert(label, path);
+        }
+        let ports = ["serial0", "serial3"].map(|l| ptys[l].clone());
         listener.set_nonblocking(true).unwrap();
         let deadline = Instant::now() + Duration::from_secs(20);
         let stream = loop {
@@ -166,6 +215,7 @@ impl Board {
             .unwrap();
         Board {
             _qemu: qemu,
+            ports,
             qtest: BufReader::new(stream),
             rtt,
             stack,
@@ -363,23 +413,43 @@ fn have_qemu_l475() -> bool {
         .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).contains("b-l475e-iot01a"))
 }
 
-#[test]
-fn the_binary_boots_tracks_and_obeys_st4_in_qemu() {
+/// The mount's figures as the firmware's start-up log gives them.
+#[derive(Clone, Copy, Debug)]
+struct Figures {
+    /// Sidereal rate, RA steps/s.
+    sidereal: f64,
+    /// Guide rate, RA and Dec steps/s.
+    ra_guide: f64,
+    dec_guide: f64,
+    ra_arcsec_per_step: f64,
+    dec_arcsec_per_step: f64,
+}
+
+/// One boot at a time: the checks compare emulated time with the wall
+/// clock's pacing, which two QEMUs on two cores would upset.
+static ONE_BOARD: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// The ELF under test, or `None` (the test skipped, with a message).
+fn board_elf() -> Option<PathBuf> {
     let Some(elf) = std::env::var_os("MKGP_BOARD_ELF").map(PathBuf::from) else {
         eprintln!(
             "SKIPPED: MKGP_BOARD_ELF unset (test.sh sets it to the ELF that \
              target-tests/board/build.sh builds); the board test did not run"
         );
-        return;
+        return None;
     };
     assert!(
         have_qemu_l475(),
         "qemu-system-arm has no b-l475e-iot01a machine: QEMU 10 or later is needed \
          (.ci/run installs it from Debian's backports)"
     );
-    let mut board = Board::boot(&elf);
+    Some(elf)
+}
 
-    // Start-up reaches the loop.
+/// Boots the board and waits for its start-up log: up, the mount's
+/// figures, tracking at the configuration's sidereal rate.
+fn start(elf: &Path, name: &str) -> (Board, Figures) {
+    let mut board = Board::boot(elf, name);
     board.wait_for("saying the firmware is up", Duration::from_secs(30), |l| {
         l.text.starts_with("mkgp-mount ") && l.text.contains(" up, SYSCLK 80000000 Hz")
     });
@@ -388,8 +458,9 @@ fn the_binary_boots_tracks_and_obeys_st4_in_qemu() {
     });
     let sidereal = number_after(&mount.text, "sidereal ").expect("sidereal steps/s");
     let guide = number_after(&mount.text, "guide ").expect("guide rate");
-    let ra_arcsec = number_after(&mount.text, "steps/s, ").expect("arcsec per RA step");
-    let dec_arcsec = number_after(&mount.text, "arcsec/RA step, ").expect("arcsec per Dec step");
+    let ra_arcsec_per_step = number_after(&mount.text, "steps/s, ").expect("arcsec per RA step");
+    let dec_arcsec_per_step =
+        number_after(&mount.text, "arcsec/RA step, ").expect("arcsec per Dec step");
     let tracking = board.wait_for("saying it tracks", Duration::from_secs(30), |l| {
         l.text.starts_with("tracking: RA ")
     });
@@ -398,6 +469,32 @@ fn the_binary_boots_tracks_and_obeys_st4_in_qemu() {
         (rate - sidereal).abs() < 1e-3,
         "tracking at {rate} steps/s, the configuration's sidereal rate is {sidereal}"
     );
+    // Guide rate in steps/s: RA at the sidereal rate's share, Dec the same
+    // angular rate in Dec steps.
+    let ra_guide = guide * sidereal;
+    let figures = Figures {
+        sidereal,
+        ra_guide,
+        dec_guide: ra_guide * ra_arcsec_per_step / dec_arcsec_per_step,
+        ra_arcsec_per_step,
+        dec_arcsec_per_step,
+    };
+    (board, figures)
+}
+
+#[test]
+fn the_binary_boots_tracks_and_obeys_st4_in_qemu() {
+    let Some(elf) = board_elf() else {
+        return;
+    };
+    let _one = ONE_BOARD.lock().unwrap_or_else(|e| e.into_inner());
+    let (mut board, figures) = start(&elf, "st4");
+    let Figures {
+        sidereal,
+        ra_guide,
+        dec_guide,
+        ..
+    } = figures;
 
     // Tracking over at least 60 emulated seconds.
     let first = next_status(&mut board, 0.0);
@@ -425,10 +522,6 @@ fn the_binary_boots_tracks_and_obeys_st4_in_qemu() {
         board.set_pin(pin, false);
         board.set_pin(pin, true);
     }
-    // Guide rate in steps/s: RA at the sidereal rate's share, Dec the same
-    // angular rate in Dec steps.
-    let ra_guide = guide * sidereal;
-    let dec_guide = ra_guide * ra_arcsec / dec_arcsec;
     let mut at = last;
     for (name, pin) in ST4 {
         let before = next_status(&mut board, at.at_s);
@@ -518,5 +611,185 @@ fn the_binary_boots_tracks_and_obeys_st4_in_qemu() {
         used * 4 <= size * 3,
         "the stack reached {used} of its {size} B: less than 25 % left"
     );
+    let _ = std::fs::remove_dir_all(&board.dir);
+}
+
+/// The guides' length through the driver, ms.
+const INDI_GUIDE_MS: u64 = 5_000;
+
+/// What one guide through the driver did: the step counters (RA beyond
+/// sidereal tracking, Dec) and the driver's coordinates (hours, degrees)
+/// moved by; the rates beyond tracking (RA, Dec steps/s) in its middle;
+/// the steps beyond tracking (RA, Dec) in the second after it.
+struct Guided {
+    ra_beyond: f64,
+    dec: f64,
+    ra_h: f64,
+    dec_deg: f64,
+    during: (f64, f64),
+    after: (f64, f64),
+}
+
+/// The rates beyond tracking between two readings (RA, Dec steps/s).
+fn rates(a: Steps, b: Steps, figures: &Figures) -> (f64, f64) {
+    let dt = b.t_s - a.t_s;
+    (
+        (b.ra - a.ra) as f64 / dt - figures.sidereal,
+        (b.dec - a.dec) as f64 / dt,
+    )
+}
+
+fn guide_through_indi(
+    indi: &Indi,
+    own: &mut Own<std::fs::File>,
+    figures: &Figures,
+    prop: &str,
+) -> Guided {
+    let (ra0, dec0) = indi.coords();
+    let s0 = own.steps();
+    let wall0 = Instant::now();
+    indi.set(&format!("{prop}={INDI_GUIDE_MS}"));
+    // Its middle: well inside the guide on either clock.
+    let guide = Duration::from_millis(INDI_GUIDE_MS);
+    std::thread::sleep(guide / 5);
+    let mid0 = own.steps();
+    std::thread::sleep(guide * 3 / 5);
+    let mid1 = own.steps();
+    // Its end on both clocks, and two of the driver's 1 s polls.
+    let end_s = s0.t_s + guide.as_secs_f64() + 2.0;
+    while own.steps().t_s < end_s || wall0.elapsed() < guide + Duration::from_millis(2_500) {
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    let s1 = own.steps();
+    std::thread::sleep(Duration::from_secs(1));
+    let s2 = own.steps();
+    let (ra1, dec1) = indi.coords();
+    Guided {
+        ra_beyond: (s1.ra - s0.ra) as f64 - figures.sidereal * (s1.t_s - s0.t_s),
+        dec: (s1.dec - s0.dec) as f64,
+        ra_h: ra1 - ra0,
+        dec_deg: dec1 - dec0,
+        during: rates(mid0, mid1, figures),
+        after: {
+            let (ra, dec) = rates(s1, s2, figures);
+            (ra * (s2.t_s - s1.t_s), dec * (s2.t_s - s1.t_s))
+        },
+    }
+}
+
+#[test]
+fn indi_lx200generic_drives_the_binary_in_qemu() {
+    let Some(elf) = board_elf() else {
+        return;
+    };
+    if !lx200::available() {
+        return;
+    }
+    let _one = ONE_BOARD.lock().unwrap_or_else(|e| e.into_inner());
+    let (board, figures) = start(&elf, "indi");
+    let mut own = Own(lx200::open_pty(&board.ports[1]));
+    let indi = Indi::start(&board.dir.join("indi"));
+    let connect = indi.connect(&board.ports[0]);
+    println!("indi: connected on port 0 in {connect:?}");
+    assert!(connect < Duration::from_secs(5), "connect took {connect:?}");
+
+    indi.set("ON_COORD_SET.TRACK=Off;SLEW=Off;SYNC=On");
+    indi.set("EQUATORIAL_EOD_COORD.RA=6;DEC=10");
+    std::thread::sleep(Duration::from_millis(1_500));
+    let (ra, dec) = indi.coords();
+    println!("indi: after the sync RA {ra} h, Dec {dec} deg");
+    assert!((ra - 6.0).abs() < 1.0 / 3600.0 && (dec - 10.0).abs() < 1.0 / 3600.0);
+
+    let guide_s = INDI_GUIDE_MS as f64 * 1e-3;
+    // The driver's RA is whole seconds of time, its Dec whole arcseconds:
+    // what the counters moved shows to within one of them.
+    let shows = |g: &Guided, what: &str| {
+        let ra_h = -g.ra_beyond * figures.ra_arcsec_per_step / 15.0 / 3600.0;
+        let dec_deg = g.dec * figures.dec_arcsec_per_step / 3600.0;
+        assert!(
+            (g.ra_h - ra_h).abs() <= 1.0 / 3600.0 + 1e-9,
+            "{what}: the driver's RA moved {} h, the counters {ra_h} h",
+            g.ra_h
+        );
+        assert!(
+            (g.dec_deg - dec_deg).abs() <= 1.0 / 3600.0 + 1e-9,
+            "{what}: the driver's Dec moved {} deg, the counters {dec_deg} deg",
+            g.dec_deg
+        );
+    };
+    // W then E in the driver's default mode: a move at the guide rate
+    // (`:RG#` `:Mw#`) and its stop (`:Qw#`) INDI_GUIDE_MS later on the
+    // wall clock, which is less of emulated time: RA moves at the guide
+    // rate in the middle, at the sidereal rate after, and no longer than
+    // the driver asked.
+    for (prop, sign) in [
+        ("TELESCOPE_TIMED_GUIDE_WE.TIMED_GUIDE_W", 1.0),
+        ("TELESCOPE_TIMED_GUIDE_WE.TIMED_GUIDE_E", -1.0),
+    ] {
+        let g = guide_through_indi(&indi, &mut own, &figures, prop);
+        let rate = sign * figures.ra_guide;
+        let length_s = g.ra_beyond / rate;
+        println!(
+            "indi: {prop} (move and stop): RA {:+.2} steps/s beyond tracking in its middle \
+             (expected {rate:+.2}), {:+.1} steps in the second after; moved {:+.1} steps ({length_s:.2} emulated s \
+             of the driver's {guide_s} s), Dec {:+}",
+            g.during.0, g.after.0, g.ra_beyond, g.dec
+        );
+        assert!(
+            (g.during.0 / rate - 1.0).abs() <= 0.01,
+            "{prop}: {} steps/s in its middle, expected {rate}",
+            g.during.0
+        );
+        assert!(
+            g.after.0.abs() <= 1.0,
+            "{prop}: still moving after the stop"
+        );
+        // (At least its middle: the rate there is the guide rate.)
+        assert!(
+            length_s <= guide_s * 1.01,
+            "{prop}: moved for {length_s} emulated s of {guide_s} s"
+        );
+        assert_eq!(g.dec, 0.0, "{prop} moved Dec");
+        shows(&g, prop);
+    }
+    // Timed pulses (`:Mg<d><ms>#`), each way on each axis: the firmware
+    // times them itself.
+    indi.set("Use Pulse Cmd.Off=Off;On=On");
+    for (prop, axis, sign) in [
+        ("TELESCOPE_TIMED_GUIDE_NS.TIMED_GUIDE_N", "Dec", 1.0),
+        ("TELESCOPE_TIMED_GUIDE_NS.TIMED_GUIDE_S", "Dec", -1.0),
+        ("TELESCOPE_TIMED_GUIDE_WE.TIMED_GUIDE_W", "RA", 1.0),
+        ("TELESCOPE_TIMED_GUIDE_WE.TIMED_GUIDE_E", "RA", -1.0),
+    ] {
+        let g = guide_through_indi(&indi, &mut own, &figures, prop);
+        let (moved, other, rate) = if axis == "RA" {
+            (g.ra_beyond, g.dec, figures.ra_guide)
+        } else {
+            (g.dec, g.ra_beyond, figures.dec_guide)
+        };
+        let expected = sign * rate * guide_s;
+        println!(
+            "indi: {prop} (timed): {axis} {moved:+.1} steps (expected {expected:+.1}), the other \
+             axis {other:+.1}; {:+.2}, {:+.2} steps/s in its middle",
+            g.during.0, g.during.1
+        );
+        assert!(
+            (moved / expected - 1.0).abs() <= 0.01,
+            "{prop}: {moved} steps, expected {expected}"
+        );
+        // RA's tracking over the interval is counted to a step or two.
+        assert!(other.abs() <= 3.0, "{prop} moved the other axis {other}");
+        shows(&g, prop);
+    }
+
+    // The firmware's counters say the same: four RA pulses and two Dec
+    // pulses reached the guiding, all six through the port.
+    let g = own.ask(":~Cg#");
+    let p = own.ask(&format!(":~Cg{}#", GuidingCounters::NAMES.len()));
+    println!("indi: guiding {g} {p}");
+    assert_eq!(lx200::field(&g, "ra_pulses"), 4, "{g}");
+    assert_eq!(lx200::field(&g, "dec_pulses"), 2, "{g}");
+    assert_eq!(lx200::field(&p, "port_pulses"), 6, "{p}");
+    drop(indi);
     let _ = std::fs::remove_dir_all(&board.dir);
 }

@@ -15,234 +15,60 @@
 //! Every process it starts is killed at the end (indiserver's whole process
 //! group, its driver included); each external command has a timeout.
 
+mod common;
+
+use common::lx200::{field, Indi, Own};
+use common::process::guide_sim;
 use mkgp_mount::counters::Counters;
 use mkgp_mount::mount::guiding::GuidingCounters;
-use std::io::{BufRead, BufReader, Read, Write};
 use std::net::TcpStream;
-use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
-use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
-const DEVICE: &str = "Standard LX200";
 /// The guides' length, ms.
 const GUIDE_MS: u64 = 20_000;
-
-/// A process group we started, killed on drop.
-struct Group(Child);
-
-impl Drop for Group {
-    fn drop(&mut self) {
-        // SAFETY: kill(2) on the process group of our own child (it leads
-        // it: started with process_group(0)).
-        unsafe { libc::kill(-(self.0.id() as libc::pid_t), libc::SIGKILL) };
-        let _ = self.0.wait();
-    }
-}
-
-fn spawn_group(cmd: &mut Command) -> Group {
-    Group(cmd.process_group(0).spawn().expect("spawn"))
-}
-
-/// Runs `cmd` to its end within `limit`: its stdout, or why it failed.
-fn try_run(cmd: &mut Command, limit: Duration) -> Result<String, String> {
-    let mut child = cmd
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .map_err(|e| format!("{cmd:?}: {e}"))?;
-    let deadline = Instant::now() + limit;
-    while child.try_wait().map_err(|e| e.to_string())?.is_none() {
-        if Instant::now() > deadline {
-            let _ = child.kill();
-            let _ = child.wait();
-            return Err(format!("{cmd:?} took longer than {limit:?}"));
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    let mut out = String::new();
-    let mut err = String::new();
-    let _ = child.stdout.take().unwrap().read_to_string(&mut out);
-    let _ = child.stderr.take().unwrap().read_to_string(&mut err);
-    let status = child.wait().map_err(|e| e.to_string())?;
-    if status.success() {
-        Ok(out)
-    } else {
-        Err(format!("{cmd:?}: {status} {err}"))
-    }
-}
-
-fn run(cmd: &mut Command, limit: Duration) -> String {
-    try_run(cmd, limit).unwrap_or_else(|e| panic!("{e}"))
-}
-
-struct Indi {
-    port: u16,
-}
-
-impl Indi {
-    /// `tool` (indi_setprop or indi_getprop) on this server for `prop` of
-    /// the device.
-    fn prop_command(&self, tool: &str, prop: &str) -> Command {
-        let mut c = Command::new(tool);
-        c.args([
-            "-p",
-            &self.port.to_string(),
-            "-t",
-            "3",
-            &format!("{DEVICE}.{prop}"),
-        ]);
-        c
-    }
-
-    fn set(&self, prop: &str) {
-        run(
-            &mut self.prop_command("indi_setprop", prop),
-            Duration::from_secs(10),
-        );
-    }
-
-    fn get(&self, prop: &str) -> f64 {
-        let out = run(
-            &mut self.prop_command("indi_getprop", prop),
-            Duration::from_secs(10),
-        );
-        out.trim()
-            .rsplit_once('=')
-            .and_then(|(_, v)| v.parse().ok())
-            .unwrap_or_else(|| panic!("{prop}: {out:?}"))
-    }
-
-    /// Waits (at most `limit_s`) until `expr` holds.
-    fn wait(&self, expr: &str, limit_s: u32) {
-        run(
-            Command::new("indi_eval").args([
-                "-p",
-                &self.port.to_string(),
-                "-t",
-                &limit_s.to_string(),
-                "-w",
-                expr,
-            ]),
-            Duration::from_secs(u64::from(limit_s) + 5),
-        );
-    }
-
-    /// RA (hours) and Dec (degrees) as the driver shows them.
-    fn coords(&self) -> (f64, f64) {
-        (
-            self.get("EQUATORIAL_EOD_COORD.RA"),
-            self.get("EQUATORIAL_EOD_COORD.DEC"),
-        )
-    }
-}
-
-/// Our own queries on the simulator's TCP port.
-struct Own(TcpStream);
-
-impl Own {
-    fn ask(&mut self, cmd: &str) -> String {
-        self.0.write_all(cmd.as_bytes()).unwrap();
-        let mut got = Vec::new();
-        let mut b = [0u8; 1];
-        while got.last() != Some(&b'#') {
-            let n = self.0.read(&mut b).expect("a reply within 5 s");
-            assert!(n > 0, "the simulator closed the connection");
-            got.push(b[0]);
-        }
-        String::from_utf8(got).unwrap()
-    }
-
-    fn field(reply: &str, key: &str) -> i64 {
-        reply
-            .trim_end_matches('#')
-            .split(' ')
-            .find_map(|f| f.strip_prefix(key)?.strip_prefix('='))
-            .unwrap_or_else(|| panic!("{key} in {reply:?}"))
-            .parse()
-            .unwrap()
-    }
-
-    /// The step counters and when they were read.
-    fn steps(&mut self) -> (i64, i64, Instant) {
-        let r = self.ask(":~P#");
-        let at = Instant::now();
-        (
-            Self::field(&r, "ra_steps"),
-            Self::field(&r, "dec_steps"),
-            at,
-        )
-    }
-}
-
-fn free_port() -> u16 {
-    std::net::TcpListener::bind(("127.0.0.1", 0))
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
-}
-
-fn have(cmd: &str) -> bool {
-    std::env::var_os("PATH")
-        .is_some_and(|p| std::env::split_paths(&p).any(|d| d.join(cmd).is_file()))
-}
 
 /// One timed guide through the driver: what the counters moved (RA steps
 /// beyond sidereal tracking, Dec steps) and what the driver's coordinates
 /// moved (hours, degrees).
-fn guide(indi: &Indi, own: &mut Own, sidereal_sps: f64, prop: &str) -> (f64, f64, f64, f64) {
+fn guide(
+    indi: &Indi,
+    own: &mut Own<TcpStream>,
+    sidereal_sps: f64,
+    prop: &str,
+) -> (f64, f64, f64, f64) {
     let (ra0, dec0) = indi.coords();
-    let (r0, d0, t0) = own.steps();
+    let s0 = own.steps();
     indi.set(&format!("{prop}={GUIDE_MS}"));
     // The guide's end, and two of the driver's 1 s polls.
     std::thread::sleep(Duration::from_millis(GUIDE_MS + 2_500));
-    let (r1, d1, t1) = own.steps();
+    let s1 = own.steps();
     let (ra1, dec1) = indi.coords();
-    let beyond = (r1 - r0) as f64 - sidereal_sps * (t1 - t0).as_secs_f64();
-    (beyond, (d1 - d0) as f64, ra1 - ra0, dec1 - dec0)
+    let beyond = (s1.ra - s0.ra) as f64 - sidereal_sps * (s1.t_s - s0.t_s);
+    (beyond, (s1.dec - s0.dec) as f64, ra1 - ra0, dec1 - dec0)
 }
 
 #[test]
 fn indi_lx200generic_connects_syncs_and_guides_the_virtual_mount() {
-    if !have("indiserver") || !have("indi_lx200generic") {
-        if std::env::var("CI").is_ok_and(|v| v == "true") {
-            panic!("indiserver or indi_lx200generic missing under CI (.ci/run installs indi-bin)");
-        }
-        eprintln!(
-            "SKIPPED: indiserver not found (apt-get install indi-bin); the INDI test did not run"
-        );
+    if !common::lx200::available() {
         return;
     }
     let dir: PathBuf = std::env::temp_dir().join(format!("mkgp-indi-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(dir.join("home")).unwrap();
+    std::fs::create_dir_all(&dir).unwrap();
     let pty = dir.join("pty");
 
     // The virtual mount: pty for the driver, TCP for us.
-    let mut sim = spawn_group(
-        Command::new(env!("CARGO_BIN_EXE_guide-sim"))
-            .args([
-                "mount",
-                "--case",
-                "C1",
-                "--no-st4-guider",
-                "--tcp",
-                "0",
-                "--pty",
-            ])
-            .arg(&pty)
-            .stdout(Stdio::piped()),
-    );
-    let (tx, rx) = mpsc::channel();
-    let stdout = sim.0.stdout.take().unwrap();
-    std::thread::spawn(move || {
-        let mut line = String::new();
-        let _ = BufReader::new(stdout).read_line(&mut line);
-        let _ = tx.send(line);
-    });
-    let ready = rx.recv_timeout(Duration::from_secs(20)).expect("ready");
+    let (mut sim, ready) = guide_sim(&[
+        "mount",
+        "--case",
+        "C1",
+        "--no-st4-guider",
+        "--tcp",
+        "0",
+        "--pty",
+        pty.to_str().expect("a UTF-8 temporary path"),
+    ]);
     let tcp: u16 = ready
         .split("tcp 127.0.0.1:")
         .nth(1)
@@ -254,45 +80,8 @@ fn indi_lx200generic_connects_syncs_and_guides_the_virtual_mount() {
         .unwrap();
     let mut own = Own(stream);
 
-    let indi = Indi { port: free_port() };
-    let _server = spawn_group(
-        Command::new("indiserver")
-            .args(["-p", &indi.port.to_string(), "-u"])
-            .arg(dir.join("sock"))
-            .arg("indi_lx200generic")
-            .env("HOME", dir.join("home"))
-            .stdout(Stdio::null())
-            .stderr(Stdio::null()),
-    );
-    // The driver's properties appear once it runs.
-    let start = Instant::now();
-    let port_prop = format!("{DEVICE}.DEVICE_PORT.PORT");
-    let probe = || {
-        try_run(
-            Command::new("indi_getprop").args([
-                "-p",
-                &indi.port.to_string(),
-                "-t",
-                "1",
-                &port_prop,
-            ]),
-            Duration::from_secs(5),
-        )
-    };
-    while probe().is_err() {
-        assert!(
-            start.elapsed() < Duration::from_secs(15),
-            "the driver never came up"
-        );
-        std::thread::sleep(Duration::from_millis(200));
-    }
-
-    indi.set("DEVICE_AUTO_SEARCH.INDI_ENABLED=Off;INDI_DISABLED=On");
-    indi.set(&format!("DEVICE_PORT.PORT={}", pty.display()));
-    let t0 = Instant::now();
-    indi.set("CONNECTION.CONNECT=On");
-    indi.wait(&format!("\"{DEVICE}.CONNECTION.CONNECT\"==1"), 10);
-    let connect = t0.elapsed();
+    let indi = Indi::start(&dir);
+    let connect = indi.connect(&pty);
     eprintln!("indi: connected in {connect:?}");
     assert!(connect < Duration::from_secs(2), "connect took {connect:?}");
 
@@ -370,21 +159,18 @@ fn indi_lx200generic_connects_syncs_and_guides_the_virtual_mount() {
     // The four pulses reached the guiding; the RA ones (20 s: dithers)
     // reached the model as dither frames, among the frames it learned.
     let g = own.ask(":~Cg#");
-    assert_eq!(Own::field(&g, "ra_pulses"), 2, "{g}");
-    assert_eq!(Own::field(&g, "dec_pulses"), 2, "{g}");
-    assert_eq!(Own::field(&g, "dithers"), 2, "{g}");
+    assert_eq!(field(&g, "ra_pulses"), 2, "{g}");
+    assert_eq!(field(&g, "dec_pulses"), 2, "{g}");
+    assert_eq!(field(&g, "dithers"), 2, "{g}");
     let l = own.ask(":~Cl#");
     eprintln!("indi: guiding {g} learner {l}");
-    assert_eq!(Own::field(&l, "dithers"), 2, "{l}");
-    assert!(
-        Own::field(&l, "frames") >= Own::field(&g, "frames") - 4,
-        "{l} {g}"
-    );
+    assert_eq!(field(&l, "dithers"), 2, "{l}");
+    assert!(field(&l, "frames") >= field(&g, "frames") - 4, "{l} {g}");
     // The port motion's counters follow guiding's own.
     let p = own.ask(&format!(":~Cg{}#", GuidingCounters::NAMES.len()));
-    assert_eq!(Own::field(&p, "port_pulses"), 4, "{p}");
+    assert_eq!(field(&p, "port_pulses"), 4, "{p}");
 
-    drop(_server);
+    drop(indi);
     // SIGTERM: the simulator exits cleanly and removes its link.
     // SAFETY: kill(2) on our own child.
     unsafe { libc::kill(sim.0.id() as libc::pid_t, libc::SIGTERM) };

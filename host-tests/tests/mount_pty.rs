@@ -6,13 +6,13 @@
 
 mod common;
 
+use common::lx200::open_pty;
 use common::process::{guide_sim, Group};
 use mkgp_mount::counters::Counters;
 use mkgp_mount::mount::guiding::GuidingCounters;
 use mkgp_mount::mount::learner::FIRMWARE_STAGES;
-use std::fs::{File, OpenOptions};
+use std::fs::File;
 use std::io::{ErrorKind, Read, Write};
-use std::os::unix::fs::OpenOptionsExt;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -79,16 +79,6 @@ fn field(reply: &str, key: &str) -> i64 {
 /// A link of this test's own (the tests run in parallel).
 fn link_path(test: &str) -> PathBuf {
     std::env::temp_dir().join(format!("mkgp-mount-pty-{test}-{}", std::process::id()))
-}
-
-/// The client's end of the pty, as a serial program opens it.
-fn open_pty(link: &Path) -> File {
-    OpenOptions::new()
-        .read(true)
-        .write(true)
-        .custom_flags(libc::O_NOCTTY | libc::O_NONBLOCK)
-        .open(link)
-        .expect("the pty link opens")
 }
 
 #[test]

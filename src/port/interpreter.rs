@@ -240,7 +240,7 @@ impl Session {
             Command::Own(Own::ConfigSave) => self.ask_store(now_us, reply, || mount.save_config()),
             Command::Own(Own::SaveModel) => self.ask_store(now_us, reply, || mount.save_model()),
             Command::Own(command) => {
-                if let Some(on) = own::answer(command, port, mount, reply) {
+                if let Some(on) = own::answer(command, now_us, port, mount, reply) {
                     self.telemetry = on;
                 }
             }

@@ -13,10 +13,12 @@ use crate::mount::config::{ConfigError, Field, MountConfig};
 /// The most stages `:~L#` counts (`:~S<n>#` takes one digit).
 const MAX_STAGES: usize = 10;
 
-/// Answers our own `command` (carrying it out), writing its reply. Returns the telemetry switch
-/// if the command set it (the interpreter keeps it, per port).
+/// Answers our own `command` (carrying it out) received at `now_us` (the
+/// board's clock), writing its reply. Returns the telemetry switch if the
+/// command set it (the interpreter keeps it, per port).
 pub fn answer(
     command: Own,
+    now_us: u64,
     port: PortCounters,
     mount: &mut impl MountPort,
     reply: &mut Reply,
@@ -61,6 +63,9 @@ pub fn answer(
             let steps = mount.step_counts();
             reply.key_value(b"ra_steps", steps.ra);
             reply.key_value(b"dec_steps", steps.dec);
+            // The firmware's clock with them: a client measures rates
+            // against it, not against its own clock and the link's delays.
+            reply.key_value(b"t_ms", i64::try_from(now_us / 1_000).unwrap_or(i64::MAX));
             reply.byte(b'#');
         }
         Own::FeedForward(on) => {

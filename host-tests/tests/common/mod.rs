@@ -13,5 +13,6 @@ pub fn trace(name: &str) -> Vec<TraceRow> {
 }
 
 pub mod bad_logs;
+pub mod lx200;
 pub mod nights;
 pub mod process;

@@ -244,7 +244,11 @@ fn own_switches_steps_and_firmware() {
             Call::ResetModel
         ]
     );
-    assert_eq!(b.ask(":~P#"), "ra_steps=123456789 dec_steps=-42#");
+    b.now_us = 61_234_567;
+    assert_eq!(
+        b.ask(":~P#"),
+        "ra_steps=123456789 dec_steps=-42 t_ms=61234#"
+    );
     assert_eq!(b.ask(":~V#"), "version=0.1.0 reset=reset_pin#");
 }
 
