@@ -33,11 +33,13 @@
 #                    1,000,000 instructions per frame (median) or 64 KiB of
 #                    state; about a minute, mostly QEMU)
 #   6. board:        the whole binary booted in QEMU's b-l475e-iot01a:
-#                    target-tests/board/build.sh, then
-#                    MKGP_BOARD_ELF=<its ELF> cargo test --release --test board
-#                    in host-tests (start-up, tracking, ST4, guiding that
-#                    the model learns from, the stack, INDI's
-#                    indi_lx200generic on the emulated USART; about 7
+#                    target-tests/board/build.sh (and again with the
+#                    test-only feature inject-model-fault), then
+#                    MKGP_BOARD_ELF=<its ELF> MKGP_BOARD_FAULT_ELF=<the other>
+#                    cargo test --release --test board in host-tests
+#                    (start-up, tracking, ST4, guiding that the model learns
+#                    from, the stack, INDI's indi_lx200generic on the
+#                    emulated USART, the fault path as wired; about 9
 #                    minutes)
 #
 # Exits non-zero on the first failure.
@@ -273,8 +275,10 @@ fi
 if [ "$HAVE_HOST_TESTS" = 1 ]; then
     if qemu-system-arm -M help | grep -q '^b-l475e-iot01a'; then
         step "board (the stm32l475vg binary booted in QEMU's b-l475e-iot01a)"
+        fault_elf=$(target-tests/board/build.sh inject-model-fault)
         board_elf=$(target-tests/board/build.sh)
-        (cd host-tests && MKGP_BOARD_ELF="$board_elf" cargo test --release --test board -- --nocapture </dev/null)
+        (cd host-tests && MKGP_BOARD_ELF="$board_elf" MKGP_BOARD_FAULT_ELF="$fault_elf" \
+            cargo test --release --test board -- --nocapture </dev/null)
     elif [ "${CI:-}" = true ]; then
         die "QEMU has no b-l475e-iot01a machine (QEMU 10 or later; .ci/run installs it from backports)"
     else

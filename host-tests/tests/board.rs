@@ -40,6 +40,14 @@
 //! arcsecond); and the guiding counters count 4 RA and 2 Dec pulses, all
 //! 6 from the port. Skipped without indiserver, as tests/indi.rs.
 //!
+//! And in a third, of the build with the test-only feature
+//! `inject-model-fault` (`MKGP_BOARD_FAULT_ELF`; the model's task panics
+//! at its third learned frame): RA pulses until it faults; the fault path
+//! drives both ENABLE pins high (driver off) before the reset, as qtest's
+//! interception of GPIOA's outputs shows in order; the next boot's log
+//! names the panic (the fault record kept in RAM across the reset), and
+//! the board tracks again with both drivers on.
+//!
 //! Without `MKGP_BOARD_ELF` the test is skipped with a message (the plain
 //! `cargo test` of host-tests; test.sh runs it again with the binary, and
 //! under CI=true fails if QEMU cannot). With it, a QEMU without the machine
@@ -88,8 +96,11 @@ struct Board {
     /// The stack's bottom and top (`_stack_end`, `_stack_start`).
     stack: (u64, u64),
     table: Table,
-    /// Every byte of the defmt stream so far.
+    /// Every byte of the defmt stream so far (of this boot).
     stream: Vec<u8>,
+    /// qtest's notifications of intercepted outputs, in order (`IRQ raise
+    /// 4`: pin 4 went high).
+    events: Vec<String>,
     dir: PathBuf,
 }
 
@@ -221,6 +232,7 @@ impl Board {
             stack,
             table,
             stream: Vec::new(),
+            events: Vec::new(),
             dir,
         }
     }
@@ -241,7 +253,10 @@ impl Board {
                 !line.starts_with("FAIL") && !line.starts_with("ERR"),
                 "qtest {command}: {line}"
             );
-            // IRQ notifications and the like come in between.
+            // Notifications of intercepted outputs come in between.
+            if line.starts_with("IRQ ") {
+                self.events.push(line.to_string());
+            }
         }
     }
 
@@ -282,6 +297,12 @@ impl Board {
         }
         self.cmd(&format!("writel 0x{:x} {}", up + 16, write));
         self.stream.extend(bytes);
+    }
+
+    /// The board reset: its log starts again (the firmware sets up the RTT
+    /// buffer anew at boot).
+    fn log_restarts(&mut self) {
+        self.stream.clear();
     }
 
     /// Every line of the log so far.
@@ -791,5 +812,116 @@ fn indi_lx200generic_drives_the_binary_in_qemu() {
     assert_eq!(lx200::field(&g, "dec_pulses"), 2, "{g}");
     assert_eq!(lx200::field(&p, "port_pulses"), 6, "{p}");
     drop(indi);
+    let _ = std::fs::remove_dir_all(&board.dir);
+}
+
+/// The ENABLE pins of the L475 board (hal/src/board.rs): RA PA4, Dec PA6;
+/// high = driver off.
+const ENABLE_PINS: [u8; 2] = [4, 6];
+/// GPIOA's output data register.
+const GPIOA_ODR: u64 = 0x4800_0014;
+/// QEMU's reset of the GPIO controllers drives PA13 (SWDIO) to its pull-up
+/// level: in the intercepted outputs, the first sign of a reset.
+const RESET_SIGN: &str = "IRQ raise 13";
+
+#[test]
+fn a_fault_in_the_model_task_disables_the_drivers_and_is_named_at_the_next_boot() {
+    let Some(elf) = std::env::var_os("MKGP_BOARD_FAULT_ELF").map(PathBuf::from) else {
+        eprintln!(
+            "SKIPPED: MKGP_BOARD_FAULT_ELF unset (test.sh sets it to the ELF that \
+             `target-tests/board/build.sh inject-model-fault` builds); the fault test did not run"
+        );
+        return;
+    };
+    assert!(
+        have_qemu_l475(),
+        "qemu-system-arm has no b-l475e-iot01a machine"
+    );
+    let _one = ONE_BOARD.lock().unwrap_or_else(|e| e.into_inner());
+    let (mut board, _) = start(&elf, "fault");
+    board.cmd("irq_intercept_out /machine/soc/gpioa");
+    let odr = board.read_u32(GPIOA_ODR);
+    for pin in ENABLE_PINS {
+        assert_eq!(
+            odr >> pin & 1,
+            0,
+            "PA{pin}: the driver is off while tracking"
+        );
+    }
+
+    // RA pulses at a guide cadence until the model's task has learned the
+    // frame at which the build faults it, and the board resets.
+    let (ra_plus, ra_minus) = (ST4[0].1, ST4[1].1);
+    for pin in [ra_plus, ra_minus] {
+        board.set_pin(pin, false);
+        board.set_pin(pin, true);
+    }
+    let deadline = Instant::now() + Duration::from_secs(120);
+    let mut k = 0;
+    while !board.events.iter().any(|e| e == RESET_SIGN) {
+        assert!(
+            Instant::now() < deadline,
+            "no reset within 2 minutes of pulses; the log:\n{}",
+            board.transcript()
+        );
+        let pin = if k % 2 == 0 { ra_plus } else { ra_minus };
+        board.set_pin(pin, false);
+        std::thread::sleep(Duration::from_millis(150));
+        board.set_pin(pin, true);
+        std::thread::sleep(Duration::from_millis(1850));
+        k += 1;
+    }
+    // Before the reset, the last thing each ENABLE pin did was go high:
+    // the fault path turned both drivers off.
+    let reset = board.events.iter().position(|e| e == RESET_SIGN).unwrap();
+    let last_before = |pin: u8| {
+        board.events[..reset]
+            .iter()
+            .rev()
+            .find(|e| e.ends_with(&format!(" {pin}")))
+            .cloned()
+    };
+    println!(
+        "fault: after {k} RA pulses; outputs of GPIOA up to the reset: {:?}",
+        &board.events[..reset]
+    );
+    for pin in ENABLE_PINS {
+        assert_eq!(
+            last_before(pin).as_deref(),
+            Some(format!("IRQ raise {pin}").as_str()),
+            "PA{pin} before the reset: {:?}",
+            &board.events[..reset]
+        );
+    }
+
+    // The next boot names the fault: the record kept in RAM across the
+    // reset, read at start-up.
+    board.log_restarts();
+    let named = board.wait_for(
+        "naming the fault at the next boot",
+        Duration::from_secs(30),
+        |l| {
+            l.text
+                .starts_with("last reset was the fault path's: panic at ")
+        },
+    );
+    println!("fault: the next boot logs \"{}\"", named.text);
+    assert!(
+        named.text.contains("learning_task.rs") && named.text.ends_with("; drivers disabled"),
+        "{}",
+        named.text
+    );
+    // And it starts again: tracking, both drivers on.
+    board.wait_for("tracking again", Duration::from_secs(30), |l| {
+        l.text.starts_with("tracking: RA ")
+    });
+    let odr = board.read_u32(GPIOA_ODR);
+    for pin in ENABLE_PINS {
+        assert_eq!(
+            odr >> pin & 1,
+            0,
+            "PA{pin}: the driver is off after the new boot"
+        );
+    }
     let _ = std::fs::remove_dir_all(&board.dir);
 }

@@ -44,6 +44,12 @@ fn now_us() -> u64 {
     Instant::now().as_micros()
 }
 
+/// With the test-only feature `inject-model-fault` (never for a board): the
+/// learned frame at which this task panics, so that host-tests/tests/board.rs
+/// sees the fault path as wired (the pins, the record, the next boot's log).
+#[cfg(feature = "inject-model-fault")]
+const INJECTED_FAULT_AT_FRAME: u32 = 3;
+
 /// The model's storage: a static, handed out once.
 static LEARNER: StaticCell<Learner<STAGES>> = StaticCell::new();
 
@@ -132,7 +138,11 @@ pub async fn learning_task(learner: &'static mut Learner<STAGES>, storage: Optio
             defmt::warn!("model reset, as asked on the command port");
         }
         let ff = learner.learn(msg.frame);
-        FRAMES_LEARNED.fetch_add(1, Ordering::Relaxed);
+        let _learned = FRAMES_LEARNED.fetch_add(1, Ordering::Relaxed) + 1;
+        #[cfg(feature = "inject-model-fault")]
+        if _learned == INJECTED_FAULT_AT_FRAME {
+            panic!("fault injected in the model's task");
+        }
         LEARNED.signal(LearnedFrame::of(learner, &msg.frame, ff));
         log::frame(learner, &msg, &ff, &mut logged);
         if let Some(save) = policy.learned(now_us()) {

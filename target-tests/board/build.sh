@@ -9,8 +9,12 @@
 # .cargo/config.toml adds the [patch], so that the repository's own
 # Cargo.lock and builds are not touched.
 #
-#   target-tests/board/build.sh          # prints target/board-qemu/.../mkgp-mount
+#   target-tests/board/build.sh          # prints target/board-qemu/mkgp-mount
+#   target-tests/board/build.sh FEATURE  # with a test-only feature of the
+#                                        # firmware too (inject-model-fault):
+#                                        # target/board-qemu/mkgp-mount-FEATURE
 set -euo pipefail
+features=stm32l475vg${1:+,$1}
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/../.." && pwd)
 out="$root/target/board-qemu"
@@ -41,5 +45,8 @@ cat >>"$out/ws/.cargo/config.toml" <<TOML
 embassy-stm32 = { path = "$out/embassy-stm32" }
 TOML
 (cd "$out/ws" && CARGO_TARGET_DIR="$out/target" cargo build --release \
-    --no-default-features --features stm32l475vg >&2)
-echo "$out/target/thumbv7em-none-eabihf/release/mkgp-mount"
+    --no-default-features --features "$features" >&2)
+# Each build's ELF kept apart: the next build overwrites cargo's.
+elf="$out/mkgp-mount${1:+-$1}"
+cp "$out/target/thumbv7em-none-eabihf/release/mkgp-mount" "$elf"
+echo "$elf"
