@@ -33,11 +33,13 @@ pub fn take_reset_flags() -> ResetFlags {
         window_watchdog: csr.wwdgrstf(),
         low_power: csr.lpwrrstf(),
     };
-    // The L4 has no power-on flag of its own: a power-on sets BORRSTF.
+    // The L4 has no power-on flag of its own: a power-on sets BORRSTF, as
+    // a brown-out does. A power-on is by far the likelier, so that is what
+    // it is called.
     #[cfg(feature = "stm32l475vg")]
     let flags = ResetFlags {
-        power_on: false,
-        brown_out: csr.borrstf(),
+        power_on: csr.borrstf(),
+        brown_out: false,
         pin: csr.pinrstf(),
         software: csr.sftrstf(),
         independent_watchdog: csr.iwdgrstf(),
