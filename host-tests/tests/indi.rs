@@ -78,7 +78,7 @@ fn indi_lx200generic_connects_syncs_and_guides_the_virtual_mount() {
     stream
         .set_read_timeout(Some(Duration::from_secs(5)))
         .unwrap();
-    let mut own = Own(stream);
+    let mut own = Own::new(stream);
 
     let indi = Indi::start(&dir);
     let connect = indi.connect(&pty);

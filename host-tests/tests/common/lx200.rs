@@ -210,18 +210,30 @@ pub struct Steps {
 }
 
 /// Our own queries on a link of their own (a TCP connection, a pty).
-pub struct Own<S>(pub S);
+pub struct Own<S> {
+    link: S,
+    /// How long a reply may take.
+    patience: Duration,
+}
 
 impl<S: Read + Write> Own<S> {
-    /// Sends `cmd` and reads its reply, up to its `#`, within 5 s.
+    /// Replies within 5 s.
+    pub fn new(link: S) -> Self {
+        Own {
+            link,
+            patience: Duration::from_secs(5),
+        }
+    }
+
+    /// Sends `cmd` and reads its reply, up to its `#`.
     pub fn ask(&mut self, cmd: &str) -> String {
-        self.0.write_all(cmd.as_bytes()).unwrap();
-        let deadline = Instant::now() + Duration::from_secs(5);
+        self.link.write_all(cmd.as_bytes()).unwrap();
+        let deadline = Instant::now() + self.patience;
         let mut got = Vec::new();
         let mut b = [0u8; 1];
         while got.last() != Some(&b'#') {
             assert!(Instant::now() < deadline, "{cmd}: no reply, got {got:?}");
-            match self.0.read(&mut b) {
+            match self.link.read(&mut b) {
                 Ok(0) => panic!("{cmd}: the link closed"),
                 Ok(_) => got.push(b[0]),
                 Err(e) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {
