@@ -85,10 +85,7 @@ fn indi_lx200generic_connects_syncs_and_guides_the_virtual_mount() {
     eprintln!("indi: connected in {connect:?}");
     assert!(connect < Duration::from_secs(2), "connect took {connect:?}");
 
-    indi.set("ON_COORD_SET.TRACK=Off;SLEW=Off;SYNC=On");
-    indi.set("EQUATORIAL_EOD_COORD.RA=6;DEC=10");
-    std::thread::sleep(Duration::from_millis(1_500));
-    let (ra, dec) = indi.coords();
+    let (ra, dec) = indi.sync(6.0, 10.0);
     eprintln!("indi: after the sync RA {ra} h, Dec {dec} deg");
     assert!((ra - 6.0).abs() < 1.0 / 3600.0 && (dec - 10.0).abs() < 1.0 / 3600.0);
 

@@ -181,6 +181,15 @@ impl Indi {
         );
     }
 
+    /// Syncs the mount to `ra_h` hours, `dec_deg` degrees through the
+    /// driver; what the driver shows after two of its 1 s polls.
+    pub fn sync(&self, ra_h: f64, dec_deg: f64) -> (f64, f64) {
+        self.set("ON_COORD_SET.TRACK=Off;SLEW=Off;SYNC=On");
+        self.set(&format!("EQUATORIAL_EOD_COORD.RA={ra_h};DEC={dec_deg}"));
+        std::thread::sleep(Duration::from_millis(1_500));
+        self.coords()
+    }
+
     /// RA (hours) and Dec (degrees) as the driver shows them.
     pub fn coords(&self) -> (f64, f64) {
         (
