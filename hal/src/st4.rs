@@ -34,9 +34,12 @@
 //!
 //! Interrupt priority: both EXTI vectors run at [`EXTI_PRIORITY`] (`P1`),
 //! below the step timer (`P0`) and above the high-priority executor.
-//! The handlers are this crate's: do not bind embassy's EXTI handler to
-//! `EXTI9_5` / `EXTI15_10`, and do not use async `ExtiInput`s on EXTI lines
-//! 5-15 alongside this module.
+//! The handlers are this crate's, and no EXTI vector may be bound to
+//! embassy's `exti::InterruptHandler` (no async `ExtiInput` anywhere): on
+//! any vector it takes every pending line, masks it and clears its flag, so
+//! an ST4 edge pending at that moment is lost and its line stays masked
+//! (the worm index has its own handler for that reason:
+//! [`crate::worm_index`]).
 
 use core::cell::RefCell;
 use core::sync::atomic::{AtomicU32, Ordering};
