@@ -157,5 +157,9 @@ pub async fn learning_task(learner: &'static mut Learner<STAGES>, storage: Optio
                 counters: flash.store.counters(),
             });
         }
+        // The command port shares this executor: with frames queued, the
+        // next receive would not yield, and the port would wait for the
+        // whole backlog rather than one frame.
+        embassy_futures::yield_now().await;
     }
 }
