@@ -30,16 +30,16 @@ fn build_stamp() -> (String, String) {
 }
 
 /// The MEMORY block of the selected chip, which memory.x includes (it
-/// documents the layouts).
+/// documents the layouts); on the L475 also SRAM2 and its section.
 fn board_memory() -> String {
-    let ram_kib = if env::var_os("CARGO_FEATURE_STM32L475VG").is_some() {
-        96
+    if env::var_os("CARGO_FEATURE_STM32L475VG").is_some() {
+        "MEMORY\n{\n  FLASH : ORIGIN = 0x08000000, LENGTH = 256K\n  RAM   : ORIGIN = 0x20000000, LENGTH = 96K\n  SRAM2 : ORIGIN = 0x10000000, LENGTH = 32K\n}\n\
+         SECTIONS\n{\n  .sram2 (NOLOAD) : ALIGN(4)\n  {\n    *(.sram2 .sram2.*);\n    . = ALIGN(4);\n  } > SRAM2\n} INSERT AFTER .uninit;\n"
+            .to_string()
     } else {
-        128
-    };
-    format!(
-        "MEMORY\n{{\n  FLASH : ORIGIN = 0x08000000, LENGTH = 256K\n  RAM   : ORIGIN = 0x20000000, LENGTH = {ram_kib}K\n}}\n"
-    )
+        "MEMORY\n{\n  FLASH : ORIGIN = 0x08000000, LENGTH = 256K\n  RAM   : ORIGIN = 0x20000000, LENGTH = 128K\n}\n"
+            .to_string()
+    }
 }
 
 fn main() {

@@ -6,7 +6,8 @@
 //! park, an unpark and the saves a user asks for may.
 
 use core::future::Future;
-use core::sync::atomic::{AtomicU32, Ordering};
+use core::mem::MaybeUninit;
+use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 use static_cell::StaticCell;
 
@@ -219,15 +220,26 @@ pub async fn restore_at_index(
 /// The learner's record being written, for the store (`RECORD_MAX` bytes).
 pub type SnapshotBuffer = [u8; RECORD_MAX];
 
-static SNAPSHOT: StaticCell<SnapshotBuffer> = StaticCell::new();
+/// The snapshot buffer's memory. On the L475 it lies in SRAM2 (memory.x,
+/// section `.sram2`, not zeroed at reset), which leaves the stack in SRAM1
+/// 8 KiB more: the first frame after a restore at the worm index took the
+/// stack there to its last word (docs/firmware.md).
+#[cfg_attr(feature = "stm32l475vg", link_section = ".sram2.SNAPSHOT")]
+static mut SNAPSHOT: MaybeUninit<SnapshotBuffer> = MaybeUninit::uninit();
+/// Whether [`snapshot_buffer`] has handed the buffer out.
+static SNAPSHOT_TAKEN: AtomicBool = AtomicBool::new(false);
 
 /// The snapshot buffer, once. Zeroed where it lies: `try_init([0; ..])`
 /// built the 8 KiB on the stack first, the deepest the stack went.
 pub fn snapshot_buffer() -> Option<&'static mut SnapshotBuffer> {
-    let slot = SNAPSHOT.try_uninit()?;
-    // SAFETY: zero bytes are a valid `[u8; N]`; the slot is this call's
-    // alone (`try_uninit` hands it out once) and is initialised after.
+    if SNAPSHOT_TAKEN.swap(true, Ordering::Relaxed) {
+        return None;
+    }
+    // SAFETY: the flag hands the buffer out once, so this is its only
+    // reference; zero bytes are a valid `[u8; N]`, written before it is
+    // read.
     Some(unsafe {
+        let slot = &mut *core::ptr::addr_of_mut!(SNAPSHOT);
         slot.as_mut_ptr().write_bytes(0, 1);
         slot.assume_init_mut()
     })
