@@ -109,6 +109,12 @@ async fn main(spawner: Spawner) {
         ),
         None => (MountConfig::default(), None),
     };
+    // Test-only: the emulator's slower tick is the configuration's too.
+    #[cfg(feature = "emulator-tick")]
+    let config = MountConfig {
+        step_tick_hz: hal::systick_time::TICK_HZ,
+        ..config
+    };
     let running = start(
         spawner,
         Hardware {

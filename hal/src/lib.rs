@@ -51,6 +51,9 @@ compile_error!(
 ))]
 compile_error!("mount-hal: select only one chip feature");
 
+#[cfg(all(feature = "emulator-tick", not(feature = "stm32l475vg")))]
+compile_error!("mount-hal: emulator-tick is for the stm32l475vg build in QEMU only");
+
 pub mod board;
 pub mod clocks;
 pub mod flash_map;

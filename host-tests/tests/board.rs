@@ -54,6 +54,15 @@
 //! names the panic (the fault record kept in RAM across the reset), and
 //! the board tracks again with both drivers on.
 //!
+//! And a fourth, of the build with the test-only feature `emulator-tick`
+//! (`MKGP_BOARD_LONG_ELF`), booted with a store that holds a model learned
+//! on the host (tests/common/store_image.rs): 31 emulated minutes of RA
+//! pulses that correct a two-stage gear error, the worm index's mark once
+//! per turn. The model is restored at boot and at the index's first pass;
+//! the three periodic saves are attempted (QEMU's flash does not program);
+//! every pulse is counted; the learner takes frames to the end; and the
+//! stack leaves at least 25 % of it.
+//!
 //! Without `MKGP_BOARD_ELF` the test is skipped with a message (the plain
 //! `cargo test` of host-tests; test.sh runs it again with the binary, and
 //! under CI=true fails if QEMU cannot). With it, a QEMU without the machine
@@ -68,6 +77,7 @@ use std::time::{Duration, Instant};
 mod common;
 
 use common::lx200::{self, Indi, Own, Steps};
+use common::store_image;
 use defmt_decoder::{DecodeError, Table};
 use mkgp_mount::counters::Counters;
 use mkgp_mount::mount::guiding::GuidingCounters;
@@ -151,8 +161,9 @@ const ST4: [(&str, Pin); 4] = [
 ];
 
 impl Board {
-    /// Boots `elf`; `name` keeps this boot's files apart from another's.
-    fn boot(elf: &Path, name: &str) -> Board {
+    /// Boots `elf` with QEMU's options `extra`; `name` keeps this boot's
+    /// files apart from another's.
+    fn boot(elf: &Path, name: &str, extra: &[&str]) -> Board {
         let bytes = std::fs::read(elf).unwrap_or_else(|e| panic!("{}: {e}", elf.display()));
         let table = Table::parse(&bytes)
             .expect("the ELF's defmt table")
@@ -174,6 +185,7 @@ impl Board {
         let mut qemu = Qemu(
             Command::new("qemu-system-arm")
                 .args(["-M", "b-l475e-iot01a", "-display", "none", "-accel", "tcg"])
+                .args(extra)
                 .arg("-kernel")
                 .arg(elf)
                 .arg("-qtest")
@@ -473,10 +485,11 @@ fn board_elf() -> Option<PathBuf> {
     Some(elf)
 }
 
-/// Boots the board and waits for its start-up log: up, the mount's
-/// figures, tracking at the configuration's sidereal rate.
-fn start(elf: &Path, name: &str) -> (Board, Figures) {
-    let mut board = Board::boot(elf, name);
+/// Boots the board (QEMU's options `extra`) and waits for its start-up
+/// log: up, the mount's figures, tracking at the configuration's sidereal
+/// rate.
+fn start(elf: &Path, name: &str, extra: &[&str]) -> (Board, Figures) {
+    let mut board = Board::boot(elf, name, extra);
     board.wait_for("saying the firmware is up", Duration::from_secs(30), |l| {
         l.text.starts_with("mkgp-mount ") && l.text.contains(" up, SYSCLK 80000000 Hz")
     });
@@ -515,7 +528,7 @@ fn the_binary_boots_tracks_and_obeys_st4_in_qemu() {
         return;
     };
     let _one = ONE_BOARD.lock().unwrap_or_else(|e| e.into_inner());
-    let (mut board, figures) = start(&elf, "st4");
+    let (mut board, figures) = start(&elf, "st4", &[]);
     let Figures {
         sidereal,
         ra_guide,
@@ -801,7 +814,7 @@ fn indi_lx200generic_drives_the_binary_in_qemu() {
         return;
     }
     let _one = ONE_BOARD.lock().unwrap_or_else(|e| e.into_inner());
-    let (board, figures) = start(&elf, "indi");
+    let (board, figures) = start(&elf, "indi", &[]);
     let mut own = Own::new(lx200::open_pty(&board.ports[1]));
     let indi = Indi::start(&board.dir.join("indi"));
     let connect = indi.connect(&board.ports[0]);
@@ -929,7 +942,7 @@ fn a_fault_in_the_model_task_disables_the_drivers_and_is_named_at_the_next_boot(
         "qemu-system-arm has no b-l475e-iot01a machine"
     );
     let _one = ONE_BOARD.lock().unwrap_or_else(|e| e.into_inner());
-    let (mut board, _) = start(&elf, "fault");
+    let (mut board, _) = start(&elf, "fault", &[]);
     board.cmd("irq_intercept_out /machine/soc/gpioa");
     let odr = board.read_u32(GPIOA_ODR);
     for pin in ENABLE_PINS {
@@ -1014,5 +1027,184 @@ fn a_fault_in_the_model_task_disables_the_drivers_and_is_named_at_the_next_boot(
             "PA{pin}: the driver is off after the new boot"
         );
     }
+    let _ = std::fs::remove_dir_all(&board.dir);
+}
+
+/// Emulated minutes of the long run: three of the learning policy's
+/// 10-minute saves.
+const LONG_RUN_MIN: f64 = 31.0;
+/// The worm-index input of the L475 board (hal/src/board.rs): PC4, low at
+/// the mark.
+const WORM_INDEX: Pin = Pin {
+    port: 'c',
+    number: 4,
+};
+/// The default configuration's worm period, s: a mark of the worm index
+/// once per turn.
+const WORM_PERIOD_S: f64 = 478.689;
+/// The long run's guide cadence, emulated s.
+const CADENCE_S: f64 = 2.0;
+
+/// The long run's gear error at `t` (emulated s), arcsec: the store
+/// image's gear (common::store_image), 1 px = 1 arcsec.
+fn gear_arcsec(t: f64) -> f64 {
+    use std::f64::consts::TAU;
+    9.0 * (TAU * t / WORM_PERIOD_S).sin() + 4.5 * (TAU * t / 155.0).sin()
+}
+
+/// The whole binary for 31 emulated minutes of guiding, booted with a
+/// learned model in its store: the restores at boot and at the worm
+/// index's first pass, the periodic saves, and the stack's high-water mark
+/// after all of it. The build with the test-only feature `emulator-tick`
+/// (`MKGP_BOARD_LONG_ELF`; SysTick and the step tick at 5 kHz, the lowest
+/// the default configuration allows, as QEMU's cost is per interrupt)
+/// under QEMU's instruction-counted time (`-icount shift=4,sleep=off`:
+/// 62.5 M instructions per emulated second, near the chip's 80 MHz, and
+/// the clock skips ahead while the core sleeps), so the run takes a few
+/// minutes of wall clock.
+#[test]
+fn thirty_emulated_minutes_of_learning_leave_a_quarter_of_the_stack() {
+    let Some(elf) = std::env::var_os("MKGP_BOARD_LONG_ELF").map(PathBuf::from) else {
+        eprintln!(
+            "SKIPPED: MKGP_BOARD_LONG_ELF unset (test.sh sets it to the ELF that \
+             `target-tests/board/build.sh emulator-tick` builds); the long run did not run"
+        );
+        return;
+    };
+    assert!(
+        have_qemu_l475(),
+        "qemu-system-arm has no b-l475e-iot01a machine"
+    );
+    let _one = ONE_BOARD.lock().unwrap_or_else(|e| e.into_inner());
+    // 40 minutes learned on the host, saved with an index pass at RA step
+    // 0 (any count: the phase is the difference).
+    let image = std::env::temp_dir().join(format!("mkgp-board-store-{}.elf", std::process::id()));
+    std::fs::write(&image, store_image::learned_model(2400.0, 0)).unwrap();
+    let loader = format!("loader,file={}", image.display());
+    let (mut board, figures) = start(
+        &elf,
+        "long",
+        &["-icount", "shift=4,sleep=off", "-device", &loader],
+    );
+    let _ = std::fs::remove_file(&image);
+    let restored = board.wait_for("restoring the stored model", Duration::from_secs(30), |l| {
+        l.text.starts_with("model restored (")
+    });
+    println!(
+        "long run: at boot \"{}\", stack {} B so far",
+        restored.text,
+        board.stack_used()
+    );
+    let mut own = Own::new(lx200::open_pty(&board.ports[1]));
+    let (ra_plus, ra_minus) = (ST4[0].1, ST4[1].1);
+    for pin in [ra_plus, ra_minus, WORM_INDEX] {
+        board.set_pin(pin, false);
+        board.set_pin(pin, true);
+    }
+    let guide_arcsec_per_s = figures.ra_guide * figures.ra_arcsec_per_step;
+    let wall0 = Instant::now();
+    let t0 = own.steps().t_s;
+    let wait_until = |own: &mut Own<std::fs::File>, t_s: f64| loop {
+        let now = own.steps().t_s;
+        if now >= t_s {
+            return now;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    let frames = |own: &mut Own<std::fs::File>| lx200::field(&own.ask(":~Cl#"), "frames");
+    let ra_pulses = |own: &mut Own<std::fs::File>| lx200::field(&own.ask(":~Cg#"), "ra_pulses");
+    let ra_pulses0 = ra_pulses(&mut own);
+    // A guider's RA pulses, one per cadence, correcting the gear error's
+    // change over the cadence (at least 30 ms: a frame each); the worm
+    // index's mark once per worm turn, the first a minute in.
+    let mut pulses = 0u32;
+    let mut t = t0;
+    let mut next_index = t0 + 60.0;
+    let mut frames_halfway = None;
+    while t < t0 + LONG_RUN_MIN * 60.0 {
+        let correction = gear_arcsec(t - t0) - gear_arcsec(t - t0 + CADENCE_S);
+        let pin = if correction > 0.0 { ra_plus } else { ra_minus };
+        let length_s = (correction.abs() / guide_arcsec_per_s).max(0.03);
+        board.set_pin(pin, false);
+        let start = wait_until(&mut own, t);
+        wait_until(&mut own, start + length_s);
+        board.set_pin(pin, true);
+        pulses += 1;
+        // The mark right after a pulse's end: both edges pending at once,
+        // as when the index's interrupt took the ST4 line's edge with it.
+        if t >= next_index {
+            board.set_pin(WORM_INDEX, false);
+            wait_until(&mut own, t + 0.3);
+            board.set_pin(WORM_INDEX, true);
+            next_index += WORM_PERIOD_S;
+        }
+        t = wait_until(&mut own, start + CADENCE_S);
+        board.drain();
+        if pulses.is_multiple_of(150) {
+            eprintln!(
+                "long run: {:.0} emulated min in {:.1} wall min, stack {} B so far",
+                (t - t0) / 60.0,
+                wall0.elapsed().as_secs_f64() / 60.0,
+                board.stack_used()
+            );
+        }
+        if frames_halfway.is_none() && t >= t0 + LONG_RUN_MIN * 30.0 {
+            frames_halfway = Some(frames(&mut own));
+        }
+    }
+    let frames_end = frames(&mut own);
+    let ra_pulses_seen = ra_pulses(&mut own) - ra_pulses0;
+    board.drain();
+    let lines = board.lines();
+    let find = |prefix: &str| -> Vec<&Line> {
+        lines
+            .iter()
+            .filter(|l| l.text.starts_with(prefix))
+            .collect()
+    };
+    let index_restore = find("model restored at the worm index");
+    let saves: Vec<&Line> = ["model saved", "model not saved", "model save deferred"]
+        .iter()
+        .flat_map(|p| find(p))
+        .collect();
+    let used = board.stack_used();
+    let size = board.stack.1 - board.stack.0;
+    println!(
+        "long run: {:.1} emulated min in {:.1} wall min, {pulses} RA pulses ({ra_pulses_seen} \
+         counted), the learner's frames {} at half time and {frames_end} at the end",
+        (t - t0) / 60.0,
+        wall0.elapsed().as_secs_f64() / 60.0,
+        frames_halfway.unwrap_or(0),
+    );
+    for l in index_restore.iter().chain(&saves) {
+        println!("long run: {:8.1} s \"{}\"", l.at_s, l.text);
+    }
+    println!(
+        "long run: stack {used} of {size} B used ({:.0} % left)",
+        100.0 * (1.0 - used as f64 / size as f64)
+    );
+    // Every pulse counted: the worm index's interrupt once took the ST4
+    // lines' pending edges with its own and left them masked.
+    assert_eq!(ra_pulses_seen, i64::from(pulses), "RA pulses counted");
+    assert_eq!(
+        index_restore.len(),
+        1,
+        "restores at the worm index's first pass; the log:\n{}",
+        board.transcript()
+    );
+    assert!(
+        saves.len() >= 3,
+        "periodic save attempts; the log:\n{}",
+        board.transcript()
+    );
+    assert!(
+        frames_halfway.is_some_and(|h| frames_end > h),
+        "the learner stopped taking frames; the log:\n{}",
+        board.transcript()
+    );
+    assert!(
+        used * 4 <= size * 3,
+        "the stack reached {used} of its {size} B: less than 25 % left"
+    );
     let _ = std::fs::remove_dir_all(&board.dir);
 }

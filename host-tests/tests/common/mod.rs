@@ -16,3 +16,4 @@ pub mod bad_logs;
 pub mod lx200;
 pub mod nights;
 pub mod process;
+pub mod store_image;
