@@ -42,7 +42,7 @@
 #                    (start-up, tracking, ST4, guiding that the model learns
 #                    from, the stack, INDI's indi_lx200generic on the
 #                    emulated USART, the fault path as wired, 31 emulated
-#                    minutes with the store's restores and saves; about 17
+#                    minutes with the store's restores and saves; about 12
 #                    minutes)
 #
 # Exits non-zero on the first failure.

@@ -109,10 +109,12 @@ async fn main(spawner: Spawner) {
         ),
         None => (MountConfig::default(), None),
     };
-    // Test-only: the emulator's slower tick is the configuration's too.
+    // Test-only: the emulator's slower tick is the configuration's too,
+    // with a top speed it can step (half the tick: 3 x sidereal).
     #[cfg(feature = "emulator-tick")]
     let config = MountConfig {
         step_tick_hz: hal::systick_time::TICK_HZ,
+        max_rate_sidereal: 3.0,
         ..config
     };
     let running = start(

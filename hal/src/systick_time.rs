@@ -32,13 +32,13 @@ use embassy_time_queue_utils::Queue;
 /// board: the configuration's `step_tick_hz` must be this.
 #[cfg(not(feature = "emulator-tick"))]
 pub const TICK_HZ: u32 = 50_000;
-/// Test-only (feature `emulator-tick`, never for a board): a tenth of the
-/// interrupts, the lowest rate the default configuration's top speed
-/// allows. QEMU's cost is per interrupt, so the board test's long run
-/// emulates its 31 minutes in about 8 (docs/decisions.md, "Booting the
-/// binary in QEMU").
+/// Test-only (feature `emulator-tick`, never for a board): a fiftieth of
+/// the interrupts, the lowest tick the configuration allows (main.rs lowers
+/// the top speed to match). QEMU's cost is per interrupt, so the board
+/// test's long run emulates its 31 minutes in a few (docs/decisions.md,
+/// "Booting the binary in QEMU").
 #[cfg(feature = "emulator-tick")]
-pub const TICK_HZ: u32 = 5_000;
+pub const TICK_HZ: u32 = 1_000;
 
 /// embassy-time's ticks per second (its default tick rate).
 const DRIVER_HZ: u32 = 1_000_000;

@@ -1056,8 +1056,8 @@ fn gear_arcsec(t: f64) -> f64 {
 /// learned model in its store: the restores at boot and at the worm
 /// index's first pass, the periodic saves, and the stack's high-water mark
 /// after all of it. The build with the test-only feature `emulator-tick`
-/// (`MKGP_BOARD_LONG_ELF`; SysTick and the step tick at 5 kHz, the lowest
-/// the default configuration allows, as QEMU's cost is per interrupt)
+/// (`MKGP_BOARD_LONG_ELF`; SysTick and the step tick at 1 kHz, the lowest
+/// the configuration allows, as QEMU's cost is per interrupt)
 /// under QEMU's instruction-counted time (`-icount shift=4,sleep=off`:
 /// 62.5 M instructions per emulated second, near the chip's 80 MHz, and
 /// the clock skips ahead while the core sleeps), so the run takes a few
