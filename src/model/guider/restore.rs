@@ -902,8 +902,6 @@ mod tests {
         std::println!(
             "steady {steady}; park: known {k} unknown {u} cold {c}; far: {far_k} {far_u} {far_c}"
         );
-        // Measured: steady 0.060; park 0.062 0.292 0.578; far 0.171 0.267
-        // 0.585 (without the phase search, unknown: 0.398 and 0.442).
         assert!(k < 1.1 * steady, "{k} vs {steady}");
         assert!(far_k < 0.5 * far_c, "{far_k} vs {far_c}");
         assert!(
