@@ -401,6 +401,22 @@ fn number_after(text: &str, key: &str) -> Option<f64> {
     rest[..end].parse().ok()
 }
 
+/// A pulse's length by the firmware's clock, s, and when its end was
+/// logged: from the first "ST4 pulse start `name`" line after `after_s` to
+/// the next "ST4 pulse end" of its axis.
+fn logged_pulse(board: &mut Board, name: &str, after_s: f64) -> (f64, f64) {
+    let axis = name.split(' ').next().unwrap();
+    let start = board.wait_for(&format!("ST4 {name} start"), Duration::from_secs(10), |l| {
+        l.text.starts_with(&format!("ST4 pulse start {name} at ")) && l.at_s > after_s
+    });
+    let end = board.wait_for(&format!("ST4 {axis} end"), Duration::from_secs(10), |l| {
+        l.text.starts_with(&format!("ST4 pulse end {axis} at ")) && l.at_s > start.at_s
+    });
+    let start_us = number_after(&start.text, " at ").unwrap();
+    let end_us = number_after(&end.text, " at ").unwrap();
+    ((end_us - start_us) / 1e6, end.at_s)
+}
+
 /// A status line: its time and the RA and Dec step counts.
 #[derive(Clone, Copy, Debug)]
 struct Status {
@@ -569,16 +585,8 @@ fn the_binary_boots_tracks_and_obeys_st4_in_qemu() {
         std::thread::sleep(Duration::from_secs(3));
         board.set_pin(pin, true);
         let axis = name.split(' ').next().unwrap();
-        let start = board.wait_for(&format!("ST4 {name} start"), Duration::from_secs(10), |l| {
-            l.text.starts_with(&format!("ST4 pulse start {name} at ")) && l.at_s > before.at_s
-        });
-        let end = board.wait_for(&format!("ST4 {axis} end"), Duration::from_secs(10), |l| {
-            l.text.starts_with(&format!("ST4 pulse end {axis} at ")) && l.at_s > start.at_s
-        });
-        let start_us = number_after(&start.text, " at ").unwrap();
-        let end_us = number_after(&end.text, " at ").unwrap();
-        let length_s = (end_us - start_us) / 1e6;
-        let after = next_status(&mut board, end.at_s);
+        let (length_s, end_at_s) = logged_pulse(&mut board, name, before.at_s);
+        let after = next_status(&mut board, end_at_s);
         let dt = after.at_s - before.at_s;
         let ra_beyond = (after.ra - before.ra) - sidereal * dt;
         let dec_moved = after.dec - before.dec;
@@ -623,13 +631,7 @@ fn the_binary_boots_tracks_and_obeys_st4_in_qemu() {
     // after now.
     let beyond_until = |own: &mut Own<std::fs::File>, s0: Steps, quiet_s: f64| {
         let until = own.steps().t_s + quiet_s;
-        let s1 = loop {
-            let s = own.steps();
-            if s.t_s >= until {
-                break s;
-            }
-            std::thread::sleep(Duration::from_millis(100));
-        };
+        let s1 = own.steps_at(until, Duration::from_millis(100));
         (
             (s1.ra - s0.ra) as f64 - sidereal * (s1.t_s - s0.t_s),
             (s1.dec - s0.dec) as f64,
@@ -652,19 +654,7 @@ fn the_binary_boots_tracks_and_obeys_st4_in_qemu() {
     board.set_pin(ra_plus, true);
     let (ra_beyond, dec_moved) = beyond_until(&mut own, s0, 0.5);
     let glitches = st4_counter(&mut own, "glitches") - glitches0;
-    let start = board.wait_for(
-        "ST4 RA + start after the bounce",
-        Duration::from_secs(10),
-        |l| l.text.starts_with("ST4 pulse start RA + at ") && l.at_s > s0.t_s,
-    );
-    let end = board.wait_for(
-        "ST4 RA end after the bounce",
-        Duration::from_secs(10),
-        |l| l.text.starts_with("ST4 pulse end RA at ") && l.at_s > start.at_s,
-    );
-    let length_s = (number_after(&end.text, " at ").unwrap()
-        - number_after(&start.text, " at ").unwrap())
-        / 1e6;
+    let (length_s, _) = logged_pulse(&mut board, "RA +", s0.t_s);
     let expected = ra_guide * length_s;
     println!(
         "ST4 bounce: 4 glitch pairs then a {length_s:.3} s pulse: {glitches} glitches counted, \
@@ -1039,18 +1029,8 @@ const WORM_INDEX: Pin = Pin {
     port: 'c',
     number: 4,
 };
-/// The default configuration's worm period, s: a mark of the worm index
-/// once per turn.
-const WORM_PERIOD_S: f64 = 478.689;
 /// The long run's guide cadence, emulated s.
 const CADENCE_S: f64 = 2.0;
-
-/// The long run's gear error at `t` (emulated s), arcsec: the store
-/// image's gear (common::store_image), 1 px = 1 arcsec.
-fn gear_arcsec(t: f64) -> f64 {
-    use std::f64::consts::TAU;
-    9.0 * (TAU * t / WORM_PERIOD_S).sin() + 4.5 * (TAU * t / 155.0).sin()
-}
 
 /// The whole binary for 31 emulated minutes of guiding, booted with a
 /// learned model in its store: the restores at boot and at the worm
@@ -1080,6 +1060,10 @@ fn thirty_emulated_minutes_of_learning_leave_a_quarter_of_the_stack() {
     // 0 (any count: the phase is the difference).
     let image = std::env::temp_dir().join(format!("mkgp-board-store-{}.elf", std::process::id()));
     std::fs::write(&image, store_image::learned_model(2400.0, 0)).unwrap();
+    // The guider corrects the gear the image learned; the index marks once
+    // per worm turn.
+    let gear = store_image::gear();
+    let worm_period_s = gear.sinusoids[0].period_s;
     let loader = format!("loader,file={}", image.display());
     let (mut board, figures) = start(
         &elf,
@@ -1104,13 +1088,8 @@ fn thirty_emulated_minutes_of_learning_leave_a_quarter_of_the_stack() {
     let guide_arcsec_per_s = figures.ra_guide * figures.ra_arcsec_per_step;
     let wall0 = Instant::now();
     let t0 = own.steps().t_s;
-    let wait_until = |own: &mut Own<std::fs::File>, t_s: f64| loop {
-        let now = own.steps().t_s;
-        if now >= t_s {
-            return now;
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    };
+    let wait_until =
+        |own: &mut Own<std::fs::File>, t_s: f64| own.steps_at(t_s, Duration::from_millis(5)).t_s;
     let frames = |own: &mut Own<std::fs::File>| lx200::field(&own.ask(":~Cl#"), "frames");
     let ra_pulses = |own: &mut Own<std::fs::File>| lx200::field(&own.ask(":~Cg#"), "ra_pulses");
     let ra_pulses0 = ra_pulses(&mut own);
@@ -1122,7 +1101,8 @@ fn thirty_emulated_minutes_of_learning_leave_a_quarter_of_the_stack() {
     let mut next_index = t0 + 60.0;
     let mut frames_halfway = None;
     while t < t0 + LONG_RUN_MIN * 60.0 {
-        let correction = gear_arcsec(t - t0) - gear_arcsec(t - t0 + CADENCE_S);
+        // 1 px = 1 arcsec.
+        let correction = gear.gear_error(t - t0) - gear.gear_error(t - t0 + CADENCE_S);
         let pin = if correction > 0.0 { ra_plus } else { ra_minus };
         let length_s = (correction.abs() / guide_arcsec_per_s).max(0.03);
         board.set_pin(pin, false);
@@ -1136,7 +1116,7 @@ fn thirty_emulated_minutes_of_learning_leave_a_quarter_of_the_stack() {
             board.set_pin(WORM_INDEX, false);
             wait_until(&mut own, t + 0.3);
             board.set_pin(WORM_INDEX, true);
-            next_index += WORM_PERIOD_S;
+            next_index += worm_period_s;
         }
         t = wait_until(&mut own, start + CADENCE_S);
         board.drain();

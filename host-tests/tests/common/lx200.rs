@@ -262,6 +262,18 @@ impl<S: Read + Write> Own<S> {
             t_s: field(&r, "t_ms") as f64 * 1e-3,
         }
     }
+
+    /// The first counts at or after the firmware's time `t_s`, asked every
+    /// `poll` of wall clock.
+    pub fn steps_at(&mut self, t_s: f64, poll: Duration) -> Steps {
+        loop {
+            let s = self.steps();
+            if s.t_s >= t_s {
+                return s;
+            }
+            std::thread::sleep(poll);
+        }
+    }
 }
 
 /// The number `key=` gives in a `key=value ...#` reply.

@@ -10,7 +10,7 @@ use std::ops::Range;
 
 use embassy_futures::block_on;
 use embedded_storage_async::nor_flash::{ErrorType, NorFlash, NorFlashErrorKind, ReadNorFlash};
-use host_tests::cases;
+use host_tests::cases::{self, Case};
 use host_tests::st4_sim::{Firmware, Rig};
 use mkgp_mount::mount::config::MountConfig;
 use mkgp_mount::mount::learner::{RECORD_FORMAT, RECORD_MAX};
@@ -77,23 +77,30 @@ impl NorFlash for RamFlash {
     }
 }
 
-/// A two-stage gear (a 478.7 s worm, the default configuration's, and a
-/// 155 s stage) in `st4_sim`'s cases format.
-const GEAR: &str = "case,component,period_s,amplitude_px,phase_rad,drift_px_per_s
-board,worm,478.689,9.0,0,
+/// A two-stage gear in `st4_sim`'s terms: the default configuration's
+/// worm (478.7 s) at 9 px, a 155 s stage at 4.5 px and a slow drift. The
+/// long run's guider corrects it as the store image learned it.
+pub fn gear() -> Case {
+    let worm_s = MountConfig::default().worm_period_s;
+    let csv = format!(
+        "case,component,period_s,amplitude_px,phase_rad,drift_px_per_s
+board,worm,{worm_s},9.0,0,
 board,stage2,155,4.5,0,
 board,drift,,,,0.0008
-";
+"
+    );
+    cases::parse(&csv, "store_image.rs".as_ref())
+        .expect("the gear parses")
+        .remove(0)
+}
 
-/// The storage range after `learn_s` of guiding on [`GEAR`] (noise
+/// The storage range after `learn_s` of guiding on [`gear`] (noise
 /// 0.3 px), as an ELF file for QEMU's `-device loader,file=` (a raw file
 /// there may be no larger than the machine's RAM size, which this machine
 /// leaves at 0): the model saved with the worm index's pass at RA step
 /// `index_pass`, as the board's learning task saves them.
 pub fn learned_model(learn_s: f64, index_pass: i64) -> Vec<u8> {
-    let case = cases::parse(GEAR, "store_image.rs".as_ref())
-        .expect("the gear parses")
-        .remove(0);
+    let case = gear();
     let mut rig = Rig::with_mount(&case, Firmware::Mkgp, 0.3, 1, MountConfig::default());
     rig.run_until((learn_s * 1e6) as u64);
     let mut snapshot = vec![0; RECORD_MAX];
