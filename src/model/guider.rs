@@ -771,8 +771,14 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         if self.grid.len() < 2 {
             return false;
         }
+        // The clock counts the periods of data as the reference does
+        // (INDIGO's agreement holds it); but where the grid lost its data
+        // (a restore's saved data dropped) the clock runs on, and a grid
+        // shorter than a worm period holds no worm line to track.
+        let holds_a_worm = self.grid.len() as f64 * CELL_S >= self.trackers[0].period_s;
         if self.config.compute_period
             && timestamp > self.config.periods_for_estimation * self.trackers[0].period_s
+            && holds_a_worm
             && !self.restore.searching()
         {
             if self.peaks_stale {

@@ -910,6 +910,32 @@ mod tests {
         );
     }
 
+    /// Restored at an unknown phase, the guider's first half worm period is
+    /// dark (nothing measured): the search finds nothing to match and drops
+    /// the saved data, while the clock stays where the snapshot left it.
+    /// The worm period holds until the grid spans a worm period again (a
+    /// shorter grid has no worm line); from the clock alone the tracker
+    /// followed the spectrum of the few dark cells left, far from the
+    /// worm, before the first measured frame.
+    #[test]
+    fn after_the_saved_data_is_dropped_the_worm_period_waits_for_a_worm_period_of_data() {
+        let g = learned();
+        let worm = g.period_s(0);
+        assert!((worm - 432.0).abs() < 2.0, "{worm}");
+        let (mut r, _, _) = restored_into(&g, *g.config(), Phase::Unknown);
+        let mut t = 0.0;
+        while t < 300.0 {
+            r.observe(t, None, 0.0, 10.0, 2.0);
+            t += 2.0;
+        }
+        // Measured again, up to just short of a worm period in the grid.
+        while t < 420.0 {
+            r.observe(t, Some(gear(t)), 0.0, 10.0, 2.0);
+            assert_eq!(r.period_s(0), worm, "at {t} s");
+            t += 2.0;
+        }
+    }
+
     /// A slew (the clock jumps, nothing measured): the model keeps what it
     /// learned and predicts at once, for a slew within the grid's window
     /// and for a meridian flip's half turn, with no fault counted. Without
