@@ -376,6 +376,21 @@ impl Board {
         top - bottom - 4 * untouched
     }
 
+    /// Prints the stack's high-water mark so far after `label`, and fails
+    /// with less than a quarter of the stack left.
+    fn check_stack(&mut self, label: &str) {
+        let used = self.stack_used();
+        let size = self.stack.1 - self.stack.0;
+        println!(
+            "{label}: {used} of {size} B used ({:.0} % left)",
+            100.0 * (1.0 - used as f64 / size as f64)
+        );
+        assert!(
+            used * 4 <= size * 3,
+            "the stack reached {used} of its {size} B: less than 25 % left"
+        );
+    }
+
     fn transcript(&self) -> String {
         self.lines()
             .iter()
@@ -718,17 +733,7 @@ fn the_binary_boots_tracks_and_obeys_st4_in_qemu() {
         line.text
     );
 
-    // The stack's high-water mark so far.
-    let used = board.stack_used();
-    let size = board.stack.1 - board.stack.0;
-    println!(
-        "stack: {used} of {size} B used ({:.0} % left)",
-        100.0 * (1.0 - used as f64 / size as f64)
-    );
-    assert!(
-        used * 4 <= size * 3,
-        "the stack reached {used} of its {size} B: less than 25 % left"
-    );
+    board.check_stack("stack");
     let _ = std::fs::remove_dir_all(&board.dir);
 }
 
@@ -1147,8 +1152,6 @@ fn thirty_emulated_minutes_of_learning_leave_a_quarter_of_the_stack() {
         .iter()
         .flat_map(|p| find(p))
         .collect();
-    let used = board.stack_used();
-    let size = board.stack.1 - board.stack.0;
     println!(
         "long run: {:.1} emulated min in {:.1} wall min, {pulses} RA pulses ({ra_pulses_seen} \
          counted), the learner's frames {} at half time and {frames_end} at the end",
@@ -1159,10 +1162,7 @@ fn thirty_emulated_minutes_of_learning_leave_a_quarter_of_the_stack() {
     for l in index_restore.iter().chain(&saves) {
         println!("long run: {:8.1} s \"{}\"", l.at_s, l.text);
     }
-    println!(
-        "long run: stack {used} of {size} B used ({:.0} % left)",
-        100.0 * (1.0 - used as f64 / size as f64)
-    );
+    board.check_stack("long run: stack");
     // Every pulse counted: the worm index's interrupt once took the ST4
     // lines' pending edges with its own and left them masked.
     assert_eq!(ra_pulses_seen, i64::from(pulses), "RA pulses counted");
@@ -1181,10 +1181,6 @@ fn thirty_emulated_minutes_of_learning_leave_a_quarter_of_the_stack() {
         frames_halfway.is_some_and(|h| frames_end > h),
         "the learner stopped taking frames; the log:\n{}",
         board.transcript()
-    );
-    assert!(
-        used * 4 <= size * 3,
-        "the stack reached {used} of its {size} B: less than 25 % left"
     );
     let _ = std::fs::remove_dir_all(&board.dir);
 }
