@@ -65,13 +65,27 @@ pub fn compute(cases: &[Case]) -> Vec<TableRow> {
     compute_with(cases, Additions::ALL)
 }
 
-/// [`compute`] with the models' `additions` as given.
-pub fn compute_with(cases: &[Case], additions: Additions) -> Vec<TableRow> {
-    let rows: Vec<(&Case, f64)> = cases
+/// One `column` of the table with the models' `additions` as given: its
+/// RMS per case and noise level, in the table's order.
+pub fn column_with(cases: &[Case], column: Column, additions: Additions) -> Vec<f64> {
+    cells(cases)
+        .into_par_iter()
+        .map(|(case, noise_px)| rms(case, noise_px, column, additions))
+        .collect()
+}
+
+/// The table's cells in its order: each case at each noise level.
+fn cells(cases: &[Case]) -> Vec<(&Case, f64)> {
+    cases
         .iter()
         .flat_map(|case| NOISE_LEVELS.map(|noise_px| (case, noise_px)))
-        .collect();
-    rows.into_par_iter()
+        .collect()
+}
+
+/// [`compute`] with the models' `additions` as given.
+pub fn compute_with(cases: &[Case], additions: Additions) -> Vec<TableRow> {
+    cells(cases)
+        .into_par_iter()
         .map(|(case, noise_px)| {
             let column = |c| rms(case, noise_px, c, additions);
             let ((reactive, ppec), (mkgp, mkgp3)) = rayon::join(

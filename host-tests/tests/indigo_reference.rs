@@ -11,6 +11,7 @@
 
 mod common;
 
+use mkgp_mount::model::additions::Additions;
 use mkgp_mount::model::guider::{Guider, GuiderConfig};
 
 // Both compute the same model in f64, so what remains is rounding. Each
@@ -36,6 +37,11 @@ fn compare(name: &str, control_gain: f64, time_step: f64) {
     let config = GuiderConfig::<f64> {
         control_gain,
         prediction_gain: 0.5,
+        // The reference's peak estimator (INDIGO's period).
+        additions: Additions {
+            log_power_peak: false,
+            ..Additions::ALL
+        },
         ..GuiderConfig::default()
     };
     let mut guider = Box::new(Guider::<f64, 1>::new(config));

@@ -228,6 +228,12 @@ fn a_feed_forward_worse_than_the_guider_alone_is_switched_off() {
     let mut setup = m.setup();
     setup.additions.set("feed_forward_weight", false).unwrap();
     let off = run(Firmware::Mkgp, setup).rms;
-    assert!(on <= alone, "on {on:.3}, alone {alone:.3}");
+    // Switched off, the firmware measures what the guider alone does, to
+    // the rounding of a weight that fell to nothing.
+    assert!(
+        on <= alone * (1.0 + 1e-6),
+        "on {on:.6}, alone {alone:.6}, on - alone {:e}",
+        on - alone
+    );
     assert!(off > 1.2 * alone, "off {off:.3}, alone {alone:.3}");
 }

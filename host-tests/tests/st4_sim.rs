@@ -42,36 +42,27 @@ fn goals() {
             r.case, r.noise_px, r.guider_only, r.fw_ppec, r.fw_mkgp
         );
         for (name, v) in [("fw_ppec", r.fw_ppec), ("fw_mkgp", r.fw_mkgp)] {
-            if v > 1.01 * r.guider_only {
+            if v > r.guider_only {
                 failures.push(format!(
-                    "{} noise {}: {name} {v:.3} worse than guider alone {:.3} by more than 1 %",
+                    "{} noise {}: {name} {v:.3} worse than guider alone {:.3}",
                     r.case, r.noise_px, r.guider_only
                 ));
             }
         }
+        // The goals: C5-C8 at most 0.6 x the guider alone noise-free and
+        // 0.8 x with 1 px, C8 0.6 x; issue 10, section 5 (half the gap to
+        // a perfect feed-forward behind full pulses) C6 0.685 x and C7
+        // 0.635 x with 1 px. C1-C4 with 1 px are held to 0.8 x as well:
+        // without the earned pulse share they measure 0.87-0.93.
         let hard = ["C5", "C6", "C7", "C8"].contains(&r.case.as_str());
-        let mut bar: Option<f64> = None;
-        if hard {
-            bar = Some(if r.noise_px == 0.0 { 0.6 } else { 0.8 });
-        }
-        if r.case == "C8" && r.noise_px > 0.0 {
-            bar = Some(0.6);
-        }
-        // Issue 10, section 5 (half the gap to a perfect feed-forward behind
-        // full pulses): C7 met by the earned pulse share (0.634, from 0.67); C6
-        // (goal 0.685) by its stage moving up to the 155 s fundamental
-        // (0.573, from 0.730 with the stage on its 77.5 s harmonic,
-        // docs/model.md). C1-C4 with 1 px: 0.48-0.66 with the earned share,
-        // 0.87-0.93 without.
-        if r.noise_px > 0.0 {
-            match r.case.as_str() {
-                "C7" => bar = Some(0.635),
-                "C5" => bar = Some(0.64),
-                "C6" => bar = Some(0.58),
-                "C1" | "C2" | "C3" | "C4" => bar = Some(0.67),
-                _ => {}
-            }
-        }
+        let bar = match (r.case.as_str(), r.noise_px > 0.0) {
+            (_, false) if hard => Some(0.6),
+            (_, false) => None,
+            ("C8", true) => Some(0.6),
+            ("C7", true) => Some(0.635),
+            ("C6", true) => Some(0.685),
+            (_, true) => Some(0.8),
+        };
         if let Some(b) = bar {
             if ratio > b {
                 failures.push(format!(

@@ -784,6 +784,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             if self.peaks_stale {
                 self.peaks_stale = false;
                 if let Some(spectrum) = Spectrum::compute(&self.grid, &mut self.scratch) {
+                    let spectrum = spectrum.log_power_peak(self.config.additions.log_power_peak);
                     let worm = spectrum.strongest(0, NYQUIST_BIN, |_| true);
                     self.worm_peak_s = worm.map(|p| p.period_s);
                     if N > 1 {

@@ -1139,14 +1139,16 @@ mod tests {
     #[test]
     fn without_level_match_the_restored_data_keeps_its_level() {
         // Night 2's gear error reconstructed 5 px above night 1's: the
-        // restored cells move to meet it, or stay as saved.
+        // restored cells move to meet it, or stay as saved. The level is
+        // read from one frame against the model's mean there, itself a few
+        // tenths of a pixel off the gear.
         let g = learned();
         for (config, matched) in [(*g.config(), true), (without(&g, "level_match"), false)] {
             let (mut r, (saved, _), _) = restored_into(&g, config, known(8000.0));
             r.observe(0.0, Some(gear(8000.0) + 5.0), 0.0, 10.0, 2.0);
             let moved = r.grid.cell(0).0 - saved;
             if matched {
-                assert!((moved - 5.0).abs() < 0.5, "{moved}");
+                assert!((moved - 5.0).abs() < 1.0, "{moved}");
             } else {
                 assert_eq!(moved, 0.0);
             }
