@@ -5,8 +5,8 @@
 //! section goal on C4, whose section after the meridian flip was the one
 //! above the guider alone); the guider's PHD2 log reads back with the
 //! replay's parser, and the logs in `data/night-logs` are what the command
-//! writes. The full sweep (C1-C8,
-//! 0 and 1 px, seeds 1-3) is the command's (docs/results.md, "A night").
+//! writes. The full sweep (C1-C8, 0 and 1 px, seeds 1-3) is the command's
+//! (docs/results.md, "A night").
 
 use host_tests::cases::{self, Case};
 use host_tests::data::{self, cases_file};
