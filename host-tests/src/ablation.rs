@@ -57,9 +57,6 @@ pub const LEAST_CHANGE: f64 = 0.001;
 /// Redraws of the mounts for the spread.
 pub const RESAMPLES: usize = 1000;
 
-/// The paper's noise levels, px.
-const TABLE_NOISE_PX: [f64; 2] = [0.0, 1.0];
-
 /// The name a loop prints under.
 pub fn loop_name(lp: Acts) -> &'static str {
     match lp {
@@ -189,7 +186,7 @@ impl Figures {
             .cases
             .iter()
             .skip(level_index(level))
-            .step_by(TABLE_NOISE_PX.len())
+            .step_by(table::NOISE_LEVELS.len())
             .copied()
             .collect();
         at.iter().sum::<f64>() / at.len() as f64
@@ -221,7 +218,7 @@ impl<'a> Bench<'a> {
                 .map(|m| Cell::mount(m, l).rms(lp, None))
                 .collect()
         });
-        let baseline_cases = case_cells(cases)
+        let baseline_cases = table::cells(cases)
             .par_iter()
             .map(|&(c, noise)| Cell::case(c, noise).rms(lp, None))
             .collect();
@@ -247,7 +244,7 @@ impl<'a> Bench<'a> {
             let base = &self.baseline_mounts[level_index(l)];
             rms.iter().zip(base).map(|(r, b)| r / b).collect()
         });
-        let cases = case_cells(self.cases)
+        let cases = table::cells(self.cases)
             .par_iter()
             .map(|&(c, noise)| Cell::case(c, noise).rms(lp, Some(additions)))
             .collect::<Vec<f64>>()
@@ -281,14 +278,6 @@ fn level_index(level: Level) -> usize {
         Level::NoiseFree => 0,
         Level::Seeing => 1,
     }
-}
-
-/// Each paper case at each of the table's noise levels, in that order.
-fn case_cells(cases: &[Case]) -> Vec<(&Case, f64)> {
-    cases
-        .iter()
-        .flat_map(|c| TABLE_NOISE_PX.map(|n| (c, n)))
-        .collect()
 }
 
 /// What switching one addition off does at one level.

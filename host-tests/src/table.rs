@@ -75,7 +75,7 @@ pub fn column_with(cases: &[Case], column: Column, additions: Additions) -> Vec<
 }
 
 /// The table's cells in its order: each case at each noise level.
-fn cells(cases: &[Case]) -> Vec<(&Case, f64)> {
+pub fn cells(cases: &[Case]) -> Vec<(&Case, f64)> {
     cases
         .iter()
         .flat_map(|case| NOISE_LEVELS.map(|noise_px| (case, noise_px)))

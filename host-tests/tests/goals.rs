@@ -130,13 +130,11 @@ fn ppec_with_the_reference_peak_is_indigos_single_kernel_model() {
     let mut reference_peak = Additions::ALL;
     reference_peak.set("log_power_peak", false).unwrap();
     let ppec = table::column_with(&cases, Column::Model(Model::Ppec), reference_peak);
-    let cells: Vec<(&str, f64)> = cases
-        .iter()
-        .flat_map(|c| table::NOISE_LEVELS.map(|noise_px| (c.name.as_str(), noise_px)))
-        .collect();
+    let cells = table::cells(&cases);
     assert_eq!(cells.len(), ppec.len());
     let mut failures = Vec::new();
     for (&(case, noise_px), &ppec) in cells.iter().zip(&ppec) {
+        let case = case.name.as_str();
         let indigo = indigo_single_kernel(case, noise_px);
         println!(
             "{case} noise {noise_px}: ppec {ppec:.4} (INDIGO {indigo}, diff {:+.5})",
@@ -195,9 +193,8 @@ fn mkgp_never_above_reactive_on_long_worms() {
         };
         closed_loop::rms_at(case, noise_px, make)
     };
-    let failures: Vec<String> = cases
-        .par_iter()
-        .flat_map(|case| table::NOISE_LEVELS.map(|n| (case, n)))
+    let failures: Vec<String> = table::cells(&cases)
+        .into_par_iter()
         .filter_map(|(case, noise_px)| {
             let (reactive, mkgp) =
                 rayon::join(|| rms(case, noise_px, false), || rms(case, noise_px, true));
