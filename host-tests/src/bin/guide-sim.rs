@@ -16,7 +16,7 @@
 //! guide-sim mount [--pty PATH] [--tcp PORT] [--case ID] [--cases FILE] [--noise PX]
 //!                 [--speed X] [--no-st4-guider]
 //! guide-sim view (--port DEVICE | --pty PATH | --tcp HOST:PORT) [--listen ADDR:PORT]
-//! guide-sim population [--seed S] [--count N] [--csv]
+//! guide-sim population [--seed S] [--count N | --mount K...] [--csv]
 //! guide-sim ablate [--seed S] [--count N] [--only NAME]...
 //! ```
 //! `guide-sim <subcommand> --help` describes each; the arguments are
@@ -217,6 +217,11 @@ struct PopulationArgs {
     #[arg(long, value_name = "N", default_value_t = 200,
           value_parser = clap::value_parser!(u64).range(1..=100_000))]
     count: u64,
+    /// Only mount K of the seed (repeatable), as a run of any --count
+    /// draws it: a row of a long run, again
+    #[arg(long = "mount", value_name = "K", conflicts_with = "count",
+          value_parser = clap::value_parser!(u64).range(1..=100_000))]
+    mounts: Vec<u64>,
     /// Print the rows as CSV (the summary goes to stderr)
     #[arg(long)]
     csv: bool,
@@ -1080,9 +1085,23 @@ fn print_night_goals(nights: &[night::Night]) {
     }
 }
 
-fn cmd_population(PopulationArgs { seed, count, csv }: PopulationArgs) -> ExitCode {
+fn cmd_population(
+    PopulationArgs {
+        seed,
+        count,
+        mounts,
+        csv,
+    }: PopulationArgs,
+) -> ExitCode {
     use population::summary;
-    let mounts = population::draw(seed, count as usize);
+    let mounts = match mounts.iter().max() {
+        None => population::draw(seed, count as usize),
+        Some(&last) => population::draw(seed, last as usize)
+            .into_iter()
+            .filter(|m| mounts.contains(&(m.index as u64)))
+            .collect(),
+    };
+    let count = mounts.len();
     let start = std::time::Instant::now();
     if csv {
         println!("{}", population::csv_header());
@@ -1108,6 +1127,7 @@ fn cmd_population(PopulationArgs { seed, count, csv }: PopulationArgs) -> ExitCo
     }
     // Each mount's rows as soon as they are in order: a long run can be
     // read (or cut short) as it goes.
+    let mut done = 0;
     let rows = population::run(&mounts, |m, rows| {
         for r in rows {
             if csv {
@@ -1125,9 +1145,9 @@ fn cmd_population(PopulationArgs { seed, count, csv }: PopulationArgs) -> ExitCo
             }
         }
         let _ = std::io::stdout().flush();
+        done += 1;
         eprintln!(
-            "guide-sim population: {}/{count} mounts ({:.0} s)",
-            m.index,
+            "guide-sim population: {done}/{count} mounts ({:.0} s)",
             start.elapsed().as_secs_f64()
         );
     });
