@@ -169,6 +169,18 @@ additions! {
     /// keeps its phase. Off: the parabola through the power, as in the
     /// paper, off by up to 0.3 s on a worm of 432 s.
     log_power_peak: Model,
+    /// The model in the firmware: the worm's period is the mount's
+    /// configured one, which the step rate turns the worm at
+    /// (`GuiderConfig::worm_period_known`, set by the learner); the worm's
+    /// tracker keeps it. Off: tracked from the spectrum as in the paper,
+    /// which the night's gaps and re-pointed data pull off by up to 1 %.
+    configured_worm: Firmware,
+    /// The restore and a jump: a stage beside another's harmonic is
+    /// admitted once the data learned since the placement resolves it
+    /// (the placed data's phases are only as right as the placement, and a
+    /// line across it shows as a split peak; `Guider::resolving_span_s`).
+    /// Off: once the whole grid's span resolves it.
+    one_piece: Restore,
     /// The restore: with every stage's phase known, the saved data is
     /// placed where the stages' phases, weighted by their gates, are least
     /// off within eight worm periods (`model::guider::restore`,
@@ -245,8 +257,10 @@ mod tests {
             "feed_forward_weight",
             "calibration_watch",
             "grid_lag",
+            "configured_worm",
         ];
         let restore = [
+            "one_piece",
             "placement_search",
             "phase_search",
             "stage_phases",

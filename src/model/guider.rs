@@ -79,6 +79,12 @@ pub struct GuiderConfig<S> {
     pub prior_period_s: f64,
     /// Track the periods from the spectrum; if false, the prior is kept.
     pub compute_period: bool,
+    /// The prior is the worm's own period on the caller's clock: the mount
+    /// turns the worm once per configured period of gear time (the
+    /// learner's). With the addition `configured_worm` the worm's tracker
+    /// keeps it; the other stages are still tracked. False: the prior is a
+    /// guess the spectrum corrects (a PC guider's, the paper's).
+    pub worm_period_known: bool,
     /// Worm periods of data before the prediction is fully blended in.
     pub periods_for_inference: f64,
     /// Worm periods of data before the period is estimated.
@@ -120,6 +126,7 @@ impl<S: Scalar> Default for GuiderConfig<S> {
             min_move: S::from_f64(0.2),
             prior_period_s: 300.0,
             compute_period: true,
+            worm_period_known: false,
             periods_for_inference: 2.0,
             periods_for_estimation: 2.0,
             max_input: S::from_f64(100.0),
@@ -174,6 +181,11 @@ pub struct Guider<S: Scalar, const N: usize = 2> {
     /// The worm peak of the current spectrum (recomputed when a cell
     /// completes, observed by the tracker on every frame).
     worm_peak_s: Option<f64>,
+    /// Gear time from which the grid's data was learned in one piece:
+    /// where a restore or a jump placed what came before (`None`: all of
+    /// it). Across a placement the stages' phases are only as right as the
+    /// placement, so a line there shows as a split peak.
+    one_piece_from_s: Option<f64>,
     frames: u32,
     /// Frames before the model is consulted: [`WARM_UP_FRAMES`], or none
     /// for a model restored at a known phase (its data is already there).
@@ -254,6 +266,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             gates = gates,
             discovery = Discovery::new(seeds),
             worm_peak_s = None,
+            one_piece_from_s = None,
             frames = 0,
             warm_up_frames = WARM_UP_FRAMES,
             start_time = 0.0,
@@ -592,6 +605,32 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         control
     }
 
+    /// The span of data that resolves the spectrum's lines from each
+    /// other, s: the grid's, or with `one_piece` the part learned in one
+    /// piece (a stage beside another's harmonic is admitted once that
+    /// resolves it, and a restored or re-pointed grid's split lines are
+    /// no such stage).
+    fn resolving_span_s(&self, timestamp: f64) -> f64 {
+        let span = self.grid.len() as f64 * CELL_S;
+        match self.one_piece_from_s {
+            Some(from) if self.config.additions.one_piece => span.min(timestamp - from).max(0.0),
+            _ => span,
+        }
+    }
+
+    /// What the worm's tracker observes when the spectrum's strongest line
+    /// lies at `peak_s`: that line, or the worm's own period where the
+    /// caller knows it (`configured_worm`). Measured, the line moves by up
+    /// to 1 % as gaps, re-pointings and a ghost stage beside it reshape
+    /// the data, and a long slew multiplies that into the worm's phase.
+    fn worm_period_observed(&self, peak_s: f64) -> f64 {
+        if self.config.worm_period_known && self.config.additions.configured_worm {
+            self.config.prior_period_s
+        } else {
+            peak_s
+        }
+    }
+
     /// The control law of [`frame`](Self::frame) and of the shadows of
     /// `trust`.
     fn law(&self) -> Law<S> {
@@ -704,7 +743,9 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             fit,
         );
         let mut gear_time = 0.0;
+        self.one_piece_from_s = None;
         if let Some(resumed) = resumed {
+            self.one_piece_from_s = Some(resumed.gear_time_s);
             // Placed at a known phase, the restored data predicts from this
             // frame on: no warm-up (its 20 s of the guider alone were a
             // fifth of the excess over settled of a parked night's first
@@ -783,12 +824,12 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         {
             if self.peaks_stale {
                 self.peaks_stale = false;
+                let span = self.resolving_span_s(timestamp);
                 if let Some(spectrum) = Spectrum::compute(&self.grid, &mut self.scratch) {
                     let spectrum = spectrum.log_power_peak(self.config.additions.log_power_peak);
                     let worm = spectrum.strongest(0, NYQUIST_BIN, |_| true);
                     self.worm_peak_s = worm.map(|p| p.period_s);
                     if N > 1 {
-                        let span = self.grid.len() as f64 * CELL_S;
                         self.discovery.scan(
                             &spectrum,
                             &mut self.trackers,
@@ -800,7 +841,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
                 }
             }
             if let Some(p) = self.worm_peak_s {
-                self.trackers[0].observe(p);
+                self.trackers[0].observe(self.worm_period_observed(p));
             }
             self.discovery
                 .step(&mut self.trackers, &mut self.gates, &self.config.additions);
@@ -969,6 +1010,69 @@ mod tests {
                 g.observe(t, Some(gear(t)), 0.0, 10.0, 2.0);
             }
             assert_eq!(g.faults().bad_time, refused, "{hold}");
+        }
+    }
+
+    #[test]
+    fn a_known_worm_period_is_kept_whatever_the_spectrum_shows() {
+        // The worm turns at 436 s where the caller says 432 s: a guess
+        // follows the data; a known period (the mount's) is kept, unless
+        // `configured_worm` is off.
+        let worm = |t: f64| 9.0 * libm::sin(2.0 * core::f64::consts::PI * t / 436.0);
+        let period = |known: bool, on: bool| {
+            let mut additions = Additions::ALL;
+            additions.configured_worm = on;
+            let mut g: Guider<f64, 2> = Guider::new(GuiderConfig {
+                prior_period_s: 432.0,
+                worm_period_known: known,
+                additions,
+                ..GuiderConfig::default()
+            });
+            for t in (0..3000).map(|k| 2.0 * k as f64) {
+                g.observe(t, Some(worm(t)), 0.0, 10.0, 2.0);
+            }
+            g.period_s(0)
+        };
+        assert_eq!(period(true, true), 432.0);
+        for (known, on) in [(false, true), (true, false)] {
+            let p = period(known, on);
+            assert!((p - 436.0).abs() < 0.5, "known {known}, on {on}: {p}");
+        }
+    }
+
+    #[test]
+    fn after_a_jump_lines_are_resolved_by_the_data_since() {
+        // 4,000 s learned, a jump, 300 s more: the span that resolves
+        // lines is the 300 s (to a frame), or without `one_piece` the grid's.
+        for one_piece in [true, false] {
+            let mut additions = Additions::ALL;
+            additions.one_piece = one_piece;
+            let mut g: Guider<f64, 2> = Guider::new(GuiderConfig {
+                additions,
+                ..GuiderConfig::default()
+            });
+            let mut t = 0.0;
+            while t < 4000.0 {
+                g.observe(t, Some(gear(t)), 0.0, 10.0, 2.0);
+                t += 2.0;
+            }
+            assert_eq!(g.resolving_span_s(t - 2.0), g.grid.len() as f64 * CELL_S);
+            g.jumped();
+            t += 2700.0;
+            let from = t;
+            while t < from + 300.0 {
+                g.observe(t, Some(gear(t)), 0.0, 10.0, 2.0);
+                t += 2.0;
+            }
+            let grid_span = g.grid.len() as f64 * CELL_S;
+            // The span at the last frame's gear time.
+            let span = g.resolving_span_s(t - 2.0 - g.start_time);
+            if one_piece {
+                assert!((span - 300.0).abs() <= 2.0, "{span}");
+            } else {
+                assert_eq!(span, grid_span);
+            }
+            assert!(grid_span > 4000.0, "{grid_span}");
         }
     }
 

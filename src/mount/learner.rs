@@ -154,6 +154,8 @@ impl<const N: usize> Learner<N> {
         let c = mount.config();
         GuiderConfig {
             prior_period_s: c.worm_period_s as f64,
+            // The step rate turns the worm once per configured period.
+            worm_period_known: true,
             control_gain: c.guider_aggressiveness,
             // The feed-forward is a rate over the coming interval.
             prediction_at_gear_time: true,
