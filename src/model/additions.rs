@@ -175,11 +175,12 @@ additions! {
     /// tracker keeps it. Off: tracked from the spectrum as in the paper,
     /// which the night's gaps and re-pointed data pull off by up to 1 %.
     configured_worm: Firmware,
-    /// The restore and a jump: a stage beside another's harmonic is
-    /// admitted once the data learned since the placement resolves it
-    /// (the placed data's phases are only as right as the placement, and a
-    /// line across it shows as a split peak; `Guider::resolving_span_s`).
-    /// Off: once the whole grid's span resolves it.
+    /// The restore and a jump: a new stage, or a stage's move to another
+    /// line, beside another's harmonic is admitted once the data learned
+    /// since the placement resolves it (the placed data's phases are only
+    /// as right as the placement, and a line across it shows as a split
+    /// peak; `Guider::resolving_spans`); a stage's own line is followed
+    /// across the whole grid. Off: once the whole grid's span resolves it.
     one_piece: Restore,
     /// The restore: with every stage's phase known, the saved data is
     /// placed where the stages' phases, weighted by their gates, are least

@@ -22,7 +22,7 @@ use crate::model::in_place::{build, fill, init_fields};
 use crate::model::numeric::clamp;
 use crate::model::numeric::scalar::Scalar;
 use crate::model::snapshot::{Phase, Snapshot, SnapshotError};
-use crate::model::spectral::discovery::Discovery;
+use crate::model::spectral::discovery::{Discovery, Spans};
 use crate::model::spectral::fft::FFT_LEN;
 use crate::model::spectral::period::PeriodTracker;
 use crate::model::spectral::spectrum::{Spectrum, NYQUIST_BIN};
@@ -605,16 +605,20 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         control
     }
 
-    /// The span of data that resolves the spectrum's lines from each
-    /// other, s: the grid's, or with `one_piece` the part learned in one
-    /// piece (a stage beside another's harmonic is admitted once that
-    /// resolves it, and a restored or re-pointed grid's split lines are
-    /// no such stage).
-    fn resolving_span_s(&self, timestamp: f64) -> f64 {
-        let span = self.grid.len() as f64 * CELL_S;
-        match self.one_piece_from_s {
-            Some(from) if self.config.additions.one_piece => span.min(timestamp - from).max(0.0),
-            _ => span,
+    /// The spans of data that resolve the spectrum's lines from each
+    /// other: the grid's, or for a new line with `one_piece` the part
+    /// learned in one piece (a restored or re-pointed grid's split lines
+    /// are no stage of their own; a stage's own line is followed across
+    /// the whole grid).
+    fn resolving_spans(&self, timestamp: f64) -> Spans {
+        let grid_s = self.grid.len() as f64 * CELL_S;
+        let new_s = match self.one_piece_from_s {
+            Some(from) if self.config.additions.one_piece => grid_s.min(timestamp - from).max(0.0),
+            _ => grid_s,
+        };
+        Spans {
+            own_s: grid_s,
+            new_s,
         }
     }
 
@@ -824,7 +828,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         {
             if self.peaks_stale {
                 self.peaks_stale = false;
-                let span = self.resolving_span_s(timestamp);
+                let spans = self.resolving_spans(timestamp);
                 if let Some(spectrum) = Spectrum::compute(&self.grid, &mut self.scratch) {
                     let spectrum = spectrum.log_power_peak(self.config.additions.log_power_peak);
                     let worm = spectrum.strongest(0, NYQUIST_BIN, |_| true);
@@ -834,7 +838,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
                             &spectrum,
                             &mut self.trackers,
                             worm,
-                            span,
+                            spans,
                             &self.config.additions,
                         );
                     }
@@ -1041,9 +1045,10 @@ mod tests {
     }
 
     #[test]
-    fn after_a_jump_lines_are_resolved_by_the_data_since() {
-        // 4,000 s learned, a jump, 300 s more: the span that resolves
-        // lines is the 300 s (to a frame), or without `one_piece` the grid's.
+    fn after_a_jump_new_lines_are_resolved_by_the_data_since() {
+        // 4,000 s learned, a jump, 300 s more: the span that resolves a new
+        // line is the 300 s (to a frame), or without `one_piece` the
+        // grid's; a stage's own line is followed across the whole grid.
         for one_piece in [true, false] {
             let mut additions = Additions::ALL;
             additions.one_piece = one_piece;
@@ -1056,7 +1061,8 @@ mod tests {
                 g.observe(t, Some(gear(t)), 0.0, 10.0, 2.0);
                 t += 2.0;
             }
-            assert_eq!(g.resolving_span_s(t - 2.0), g.grid.len() as f64 * CELL_S);
+            let grid_span = g.grid.len() as f64 * CELL_S;
+            assert_eq!(g.resolving_spans(t - 2.0), Spans::whole(grid_span));
             g.jumped();
             t += 2700.0;
             let from = t;
@@ -1065,12 +1071,13 @@ mod tests {
                 t += 2.0;
             }
             let grid_span = g.grid.len() as f64 * CELL_S;
-            // The span at the last frame's gear time.
-            let span = g.resolving_span_s(t - 2.0 - g.start_time);
+            // The spans at the last frame's gear time.
+            let spans = g.resolving_spans(t - 2.0 - g.start_time);
+            assert_eq!(spans.own_s, grid_span);
             if one_piece {
-                assert!((span - 300.0).abs() <= 2.0, "{span}");
+                assert!((spans.new_s - 300.0).abs() <= 2.0, "{spans:?}");
             } else {
-                assert_eq!(span, grid_span);
+                assert_eq!(spans.new_s, grid_span);
             }
             assert!(grid_span > 4000.0, "{grid_span}");
         }

@@ -276,6 +276,28 @@ pub struct Discovery<const N: usize> {
     seeds: [Option<f64>; N],
 }
 
+/// The spans of data, s, that resolve a spectrum's lines from each other
+/// (a stage beside another's harmonic is admitted once they do).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Spans {
+    /// For a found stage following its own line: the grid's span.
+    pub own_s: f64,
+    /// For a new stage and a stage's move to another line: the grid's
+    /// span, or with `one_piece` the data learned since a placement (a
+    /// line across it shows as a split peak, no stage of its own).
+    pub new_s: f64,
+}
+
+impl Spans {
+    /// One span for every line.
+    pub const fn whole(span_s: f64) -> Self {
+        Self {
+            own_s: span_s,
+            new_s: span_s,
+        }
+    }
+}
+
 impl<const N: usize> Discovery<N> {
     /// `seeds[s]`: the user's estimate of stage s's period, if any.
     pub fn new(seeds: [Option<f64>; N]) -> Self {
@@ -316,14 +338,15 @@ impl<const N: usize> Discovery<N> {
     }
 
     /// Read a new spectrum: find or follow every stage's peak.
-    /// `worm` is the worm's peak (the strongest) in it, `span_s` the data
-    /// span; `adds` switches the additions of the search.
+    /// `worm` is the worm's peak (the strongest) in it, `spans` the data
+    /// that resolves its lines; `adds` switches the additions of the
+    /// search.
     pub fn scan<S: Scalar>(
         &mut self,
         spectrum: &Spectrum<'_, S>,
         trackers: &mut [PeriodTracker; N],
         worm: Option<Peak>,
-        span_s: f64,
+        spans: Spans,
         adds: &Additions,
     ) {
         // The notches and the guard stand around the worm's period: while
@@ -372,7 +395,7 @@ impl<const N: usize> Discovery<N> {
             let band_hi = BAND_WORM_PERIODS * trackers[0].period_s;
             let peak = if stage.found && adds.follow_band {
                 let own = trackers[s].period_s;
-                let mut peak = peak_near(spectrum, own, known, lines, span_s, adds);
+                let mut peak = peak_near(spectrum, own, known, lines, spans.own_s, adds);
                 let octaves = Octaves {
                     own,
                     own_power: peak.map_or(0.0, |p| p.power),
@@ -381,7 +404,7 @@ impl<const N: usize> Discovery<N> {
                     worm_power,
                     range: (band_lo, MOVE_MAX_WORM_PERIODS * trackers[0].period_s),
                 };
-                if let Some(r) = octaves.choose(spectrum, known, lines, span_s, adds) {
+                if let Some(r) = octaves.choose(spectrum, known, lines, spans.new_s, adds) {
                     peak = Some(r);
                     trackers[s] = PeriodTracker {
                         period_s: r.period_s,
@@ -394,7 +417,7 @@ impl<const N: usize> Discovery<N> {
                     Some(p) => band_bins(p, FOLLOW_WIDTH),
                     None => (period_bin(band_hi), period_bin(band_lo)),
                 };
-                strongest_peak(spectrum, band, known, lines, span_s, adds)
+                strongest_peak(spectrum, band, known, lines, spans.new_s, adds)
             };
             let Some(peak) = peak else { continue };
             if !stage.found {
@@ -569,7 +592,13 @@ mod tests {
         trackers[0].disagreement = 0.0;
         let mut d: Discovery<2> = Discovery::new([None, None]);
         let span = grid.len() as f64 * CELL_S;
-        d.scan(&spectrum, &mut trackers, Some(worm), span, &Additions::ALL);
+        d.scan(
+            &spectrum,
+            &mut trackers,
+            Some(worm),
+            Spans::whole(span),
+            &Additions::ALL,
+        );
         d.saved(1).0.then_some(trackers[1].period_s)
     }
 
@@ -593,6 +622,46 @@ mod tests {
             early.is_none_or(|p| (p / 216.0 - 1.0).abs() > NOTCH_WIDTH),
             "{early:?}"
         );
+    }
+
+    #[test]
+    fn a_new_line_needs_the_new_span_a_found_stage_keeps_its_own() {
+        // H2 over two beats, as after a placement 1,000 s ago (`one_piece`).
+        use crate::model::spectral::spectrum::Spectrum;
+        let pi2 = 2.0 * core::f64::consts::PI;
+        let g = |t: f64| {
+            9.0 * libm::sin(pi2 * t / 432.0)
+                + 3.0 * libm::sin(pi2 * t / 216.0)
+                + 4.5 * libm::sin(pi2 * t / 205.7)
+        };
+        let grid = sampled(g, 8640.0);
+        let mut buf = [0.0; crate::model::spectral::fft::FFT_LEN];
+        let spectrum = Spectrum::compute(&grid, &mut buf).unwrap();
+        let worm = spectrum.strongest(0, NYQUIST_BIN, |_| true);
+        let grid_s = grid.len() as f64 * CELL_S;
+        let placed = Spans {
+            own_s: grid_s,
+            new_s: 1000.0,
+        };
+        let scan = |d: &mut Discovery<2>, trackers: &mut [PeriodTracker; 2], spans| {
+            d.scan(&spectrum, trackers, worm, spans, &Additions::ALL)
+        };
+        let mut trackers = [PeriodTracker::new(432.0); 2];
+        trackers[0].disagreement = 0.0;
+        // A new stage beside the harmonic: refused until the data since
+        // the placement resolves it.
+        let mut fresh: Discovery<2> = Discovery::new([None, None]);
+        scan(&mut fresh, &mut trackers, placed);
+        let line = fresh.stages[1].peak_period_s;
+        assert!(line.is_none_or(|p| (p - 205.7).abs() > 5.0), "{line:?}");
+        // A stage found before the placement follows its own line.
+        let mut trackers = [PeriodTracker::new(432.0); 2];
+        trackers[0].disagreement = 0.0;
+        let mut found: Discovery<2> = Discovery::new([None, None]);
+        scan(&mut found, &mut trackers, Spans::whole(grid_s));
+        scan(&mut found, &mut trackers, placed);
+        let line = found.stages[1].peak_period_s;
+        assert!(line.is_some_and(|p| (p - 205.7).abs() < 1.5), "{line:?}");
     }
 
     #[test]
@@ -639,7 +708,7 @@ mod tests {
             &spectrum,
             &mut trackers,
             Some(worm),
-            grid.len() as f64 * CELL_S,
+            Spans::whole(grid.len() as f64 * CELL_S),
             &Additions::ALL,
         );
         // The 144 s harmonic is notched; the strongest admissible peak is
@@ -662,7 +731,7 @@ mod tests {
             &spectrum,
             &mut unsettled,
             Some(worm),
-            4000.0,
+            Spans::whole(4000.0),
             &Additions::ALL,
         );
         fresh.step(&mut unsettled, &mut gates, &Additions::ALL);
@@ -682,9 +751,21 @@ mod tests {
         trackers[0].disagreement = 0.0;
         let mut d: Discovery<2> = Discovery::new([None, Some(seed)]);
         let span = grid.len() as f64 * CELL_S;
-        d.scan(&spectrum, &mut trackers, worm, span, &Additions::ALL);
+        d.scan(
+            &spectrum,
+            &mut trackers,
+            worm,
+            Spans::whole(span),
+            &Additions::ALL,
+        );
         assert!((trackers[1].period_s - seed).abs() < 1.5, "{trackers:?}");
-        d.scan(&spectrum, &mut trackers, worm, span, &Additions::ALL);
+        d.scan(
+            &spectrum,
+            &mut trackers,
+            worm,
+            Spans::whole(span),
+            &Additions::ALL,
+        );
         trackers[1].period_s
     }
 
@@ -754,7 +835,7 @@ mod tests {
         use crate::model::spectral::spectrum::Spectrum;
         let spectrum = Spectrum::scripted(buf);
         let worm = spectrum.strongest(0, NYQUIST_BIN, |_| true);
-        d.scan(&spectrum, trackers, worm, span_s, adds);
+        d.scan(&spectrum, trackers, worm, Spans::whole(span_s), adds);
     }
 
     /// The period a fresh search finds for stage 1, if any.
