@@ -602,22 +602,23 @@ mod tests {
         d.saved(1).0.then_some(trackers[1].period_s)
     }
 
+    /// H2: a 432 s worm with a true second harmonic (216 s) and a gear 5 %
+    /// off it (205.7 s), beat 4,320 s.
+    fn h2(t: f64) -> f64 {
+        let pi2 = 2.0 * core::f64::consts::PI;
+        9.0 * libm::sin(pi2 * t / 432.0)
+            + 3.0 * libm::sin(pi2 * t / 216.0)
+            + 4.5 * libm::sin(pi2 * t / 205.7)
+    }
+
     #[test]
     fn scan_admits_a_near_harmonic_stage_beside_a_true_harmonic() {
-        // H2: a 432 s worm with a true second harmonic (216 s) and a gear
-        // 5 % off it (205.7 s), beat 4,320 s.
-        let pi2 = 2.0 * core::f64::consts::PI;
-        let g = |t: f64| {
-            9.0 * libm::sin(pi2 * t / 432.0)
-                + 3.0 * libm::sin(pi2 * t / 216.0)
-                + 4.5 * libm::sin(pi2 * t / 205.7)
-        };
         // Two beats: found at its own period, not at the harmonic's.
-        let late = second_stage(g, 8640.0).unwrap();
+        let late = second_stage(h2, 8640.0).unwrap();
         assert!((late - 205.7).abs() < 1.5, "{late}");
         // Half a beat: the two lines are one lobe, in the notch, refused
         // (what is found, if anything, lies elsewhere).
-        let early = second_stage(g, 0.5 * 4320.0);
+        let early = second_stage(h2, 0.5 * 4320.0);
         assert!(
             early.is_none_or(|p| (p / 216.0 - 1.0).abs() > NOTCH_WIDTH),
             "{early:?}"
@@ -628,13 +629,7 @@ mod tests {
     fn a_new_line_needs_the_new_span_a_found_stage_keeps_its_own() {
         // H2 over two beats, as after a placement 1,000 s ago (`one_piece`).
         use crate::model::spectral::spectrum::Spectrum;
-        let pi2 = 2.0 * core::f64::consts::PI;
-        let g = |t: f64| {
-            9.0 * libm::sin(pi2 * t / 432.0)
-                + 3.0 * libm::sin(pi2 * t / 216.0)
-                + 4.5 * libm::sin(pi2 * t / 205.7)
-        };
-        let grid = sampled(g, 8640.0);
+        let grid = sampled(h2, 8640.0);
         let mut buf = [0.0; crate::model::spectral::fft::FFT_LEN];
         let spectrum = Spectrum::compute(&grid, &mut buf).unwrap();
         let worm = spectrum.strongest(0, NYQUIST_BIN, |_| true);
@@ -750,22 +745,10 @@ mod tests {
         let mut trackers = [PeriodTracker::new(432.0); 2];
         trackers[0].disagreement = 0.0;
         let mut d: Discovery<2> = Discovery::new([None, Some(seed)]);
-        let span = grid.len() as f64 * CELL_S;
-        d.scan(
-            &spectrum,
-            &mut trackers,
-            worm,
-            Spans::whole(span),
-            &Additions::ALL,
-        );
+        let spans = Spans::whole(grid.len() as f64 * CELL_S);
+        d.scan(&spectrum, &mut trackers, worm, spans, &Additions::ALL);
         assert!((trackers[1].period_s - seed).abs() < 1.5, "{trackers:?}");
-        d.scan(
-            &spectrum,
-            &mut trackers,
-            worm,
-            Spans::whole(span),
-            &Additions::ALL,
-        );
+        d.scan(&spectrum, &mut trackers, worm, spans, &Additions::ALL);
         trackers[1].period_s
     }
 
