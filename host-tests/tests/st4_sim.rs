@@ -110,9 +110,11 @@ fn a_guider_slower_than_configured() {
 
 /// A mount configured with another wheel than it has: the worm's period
 /// and the RA steps per worm turn both 10 % or 20 % off, so that it still
-/// tracks at the sidereal rate. The model keeps the configured period
-/// (`configured_worm`) and loses most of the worm's gain, but the firmware
-/// stays below the guider alone (C5 at 1 px, seeds 1-3).
+/// tracks at the sidereal rate. A worm faster than the configured period
+/// (x1.1) is followed; a slower one (x0.8) is taken for no stage of the
+/// train, the model keeps the configured period (`configured_worm`) and
+/// loses most of the worm's gain, but the firmware stays below the guider
+/// alone (C5 at 1 px, seeds 1-3).
 #[test]
 fn a_mount_configured_with_another_wheel_stays_below_the_guider_alone() {
     let c = case("C5");

@@ -172,8 +172,10 @@ additions! {
     /// The model in the firmware: the worm's period is the mount's
     /// configured one, which the step rate turns the worm at
     /// (`GuiderConfig::worm_period_known`, set by the learner); the worm's
-    /// tracker keeps it. Off: tracked from the spectrum as in the paper,
-    /// which the night's gaps and re-pointed data pull off by up to 1 %.
+    /// tracker keeps it unless the spectrum's strongest line is a faster
+    /// one resolved from it (a stage louder than the worm). Off: tracked
+    /// from the spectrum as in the paper, which the night's gaps and
+    /// re-pointed data pull off by up to 1 %.
     configured_worm: Firmware,
     /// The restore and a jump: a new stage, or a stage's move to another
     /// line, beside another's harmonic is admitted once the data learned

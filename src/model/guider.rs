@@ -82,7 +82,8 @@ pub struct GuiderConfig<S> {
     /// The prior is the worm's own period on the caller's clock: the mount
     /// turns the worm once per configured period of gear time (the
     /// learner's). With the addition `configured_worm` the worm's tracker
-    /// keeps it; the other stages are still tracked. False: the prior is a
+    /// keeps it unless a faster line is louder; the other stages are still
+    /// tracked. False: the prior is a
     /// guess the spectrum corrects (a PC guider's, the paper's).
     pub worm_period_known: bool,
     /// Worm periods of data before the prediction is fully blended in.
@@ -605,13 +606,18 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         control
     }
 
+    /// The time the grid's cells span, s.
+    fn grid_span_s(&self) -> f64 {
+        self.grid.len() as f64 * CELL_S
+    }
+
     /// The spans of data that resolve the spectrum's lines from each
     /// other: the grid's, or for a new line with `one_piece` the part
     /// learned in one piece (a restored or re-pointed grid's split lines
     /// are no stage of their own; a stage's own line is followed across
     /// the whole grid).
     fn resolving_spans(&self, timestamp: f64) -> Spans {
-        let grid_s = self.grid.len() as f64 * CELL_S;
+        let grid_s = self.grid_span_s();
         let new_s = match self.one_piece_from_s {
             Some(from) if self.config.additions.one_piece => grid_s.min(timestamp - from).max(0.0),
             _ => grid_s,
@@ -623,13 +629,19 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     }
 
     /// What the worm's tracker observes when the spectrum's strongest line
-    /// lies at `peak_s`: that line, or the worm's own period where the
-    /// caller knows it (`configured_worm`). Measured, the line moves by up
-    /// to 1 % as gaps, re-pointings and a ghost stage beside it reshape
-    /// the data, and a long slew multiplies that into the worm's phase.
-    fn worm_period_observed(&self, peak_s: f64) -> f64 {
-        if self.config.worm_period_known && self.config.additions.configured_worm {
-            self.config.prior_period_s
+    /// lies at `peak_s` in data of `span_s`: that line, or the worm's own
+    /// period where the caller knows it (`configured_worm`), unless the
+    /// line is a faster one the span resolves from the worm's (a belt or
+    /// a motor gear louder than the worm, which the paper's model takes as
+    /// its base). Measured, the worm's line moves by up to 1 % as gaps,
+    /// re-pointings and a ghost stage beside it reshape the data, and a
+    /// long slew multiplies that into the worm's phase; a slower line is
+    /// no stage of the train (bumps, drift).
+    fn worm_period_observed(&self, peak_s: f64, span_s: f64) -> f64 {
+        let known = self.config.prior_period_s;
+        let faster_stage = (1.0 / peak_s - 1.0 / known) * span_s > 1.0;
+        if self.config.worm_period_known && self.config.additions.configured_worm && !faster_stage {
+            known
         } else {
             peak_s
         }
@@ -820,7 +832,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         // (INDIGO's agreement holds it); but where the grid lost its data
         // (a restore's saved data dropped) the clock runs on, and a grid
         // shorter than a worm period holds no worm line to track.
-        let holds_a_worm = self.grid.len() as f64 * CELL_S >= self.trackers[0].period_s;
+        let holds_a_worm = self.grid_span_s() >= self.trackers[0].period_s;
         if self.config.compute_period
             && timestamp > self.config.periods_for_estimation * self.trackers[0].period_s
             && holds_a_worm
@@ -845,7 +857,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
                 }
             }
             if let Some(p) = self.worm_peak_s {
-                self.trackers[0].observe(self.worm_period_observed(p));
+                self.trackers[0].observe(self.worm_period_observed(p, self.grid_span_s()));
             }
             self.discovery
                 .step(&mut self.trackers, &mut self.gates, &self.config.additions);
@@ -1018,12 +1030,14 @@ mod tests {
     }
 
     #[test]
-    fn a_known_worm_period_is_kept_whatever_the_spectrum_shows() {
-        // The worm turns at 436 s where the caller says 432 s: a guess
-        // follows the data; a known period (the mount's) is kept, unless
-        // `configured_worm` is off.
-        let worm = |t: f64| 9.0 * libm::sin(2.0 * core::f64::consts::PI * t / 436.0);
-        let period = |known: bool, on: bool| {
+    fn a_known_worm_period_is_kept_unless_a_faster_line_is_louder() {
+        // The caller says 432 s. A worm turning at 436 s (within the
+        // spectrum's resolution) or at 520 s (a slower line, no faster
+        // stage's): a guess follows the data, a known period (the mount's)
+        // is kept, unless `configured_worm` is off. A line at 360 s, a
+        // faster one resolved from 432 s, is followed either way.
+        let period = |true_s: f64, known: bool, on: bool| {
+            let worm = |t: f64| 9.0 * libm::sin(2.0 * core::f64::consts::PI * t / true_s);
             let mut additions = Additions::ALL;
             additions.configured_worm = on;
             let mut g: Guider<f64, 2> = Guider::new(GuiderConfig {
@@ -1037,10 +1051,21 @@ mod tests {
             }
             g.period_s(0)
         };
-        assert_eq!(period(true, true), 432.0);
-        for (known, on) in [(false, true), (true, false)] {
-            let p = period(known, on);
-            assert!((p - 436.0).abs() < 0.5, "known {known}, on {on}: {p}");
+        for true_s in [436.0, 520.0] {
+            assert_eq!(period(true_s, true, true), 432.0, "{true_s} s");
+        }
+        let followed = [
+            (436.0, false, true),
+            (436.0, true, false),
+            (520.0, true, false),
+            (360.0, true, true),
+        ];
+        for (true_s, known, on) in followed {
+            let p = period(true_s, known, on);
+            assert!(
+                (p - true_s).abs() < 0.5,
+                "{true_s} s, known {known}, on {on}: {p}"
+            );
         }
     }
 
@@ -1061,7 +1086,7 @@ mod tests {
                 g.observe(t, Some(gear(t)), 0.0, 10.0, 2.0);
                 t += 2.0;
             }
-            let grid_span = g.grid.len() as f64 * CELL_S;
+            let grid_span = g.grid_span_s();
             assert_eq!(g.resolving_spans(t - 2.0), Spans::whole(grid_span));
             g.jumped();
             t += 2700.0;
@@ -1070,7 +1095,7 @@ mod tests {
                 g.observe(t, Some(gear(t)), 0.0, 10.0, 2.0);
                 t += 2.0;
             }
-            let grid_span = g.grid.len() as f64 * CELL_S;
+            let grid_span = g.grid_span_s();
             // The spans at the last frame's gear time.
             let spans = g.resolving_spans(t - 2.0 - g.start_time);
             assert_eq!(spans.own_s, grid_span);

@@ -35,8 +35,9 @@ pub struct MountConfig {
     /// Seconds per worm revolution at the sidereal rate: one sidereal day
     /// (86 164.09 s) divided by the number of teeth of the worm wheel
     /// (180 teeth: 478.69 s; 144 teeth: 598.36 s). Finite, > 0. The
-    /// learner's model keeps it as the worm's period (the addition
-    /// `configured_worm`): set the wheel the mount has.
+    /// learner's model keeps it as the worm's period unless a faster
+    /// line is louder (the addition `configured_worm`): set the wheel the
+    /// mount has.
     pub worm_period_s: f32,
     /// Microsteps of the Dec motor per degree of Dec. Finite, > 0.
     pub dec_steps_per_degree: f32,
