@@ -83,8 +83,8 @@ pub struct GuiderConfig<S> {
     /// turns the worm once per configured period of gear time (the
     /// learner's). With the addition `configured_worm` the worm's tracker
     /// keeps it unless a faster line is louder; the other stages are still
-    /// tracked. False: the prior is a
-    /// guess the spectrum corrects (a PC guider's, the paper's).
+    /// tracked. False: the prior is a guess the spectrum corrects (a PC
+    /// guider's, the paper's).
     pub worm_period_known: bool,
     /// Worm periods of data before the prediction is fully blended in.
     pub periods_for_inference: f64,
