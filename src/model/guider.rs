@@ -629,17 +629,17 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     }
 
     /// What the worm's tracker observes when the spectrum's strongest line
-    /// lies at `peak_s` in data of `span_s`: that line, or the worm's own
-    /// period where the caller knows it (`configured_worm`), unless the
-    /// line is a faster one the span resolves from the worm's (a belt or
+    /// lies at `peak_s`: that line, or the worm's own period where the
+    /// caller knows it (`configured_worm`), unless the line is a faster
+    /// one the grid's span resolves from the worm's (a belt or
     /// a motor gear louder than the worm, which the paper's model takes as
     /// its base). Measured, the worm's line moves by up to 1 % as gaps,
     /// re-pointings and a ghost stage beside it reshape the data, and a
     /// long slew multiplies that into the worm's phase; a slower line is
     /// no stage of the train (bumps, drift).
-    fn worm_period_observed(&self, peak_s: f64, span_s: f64) -> f64 {
+    fn worm_period_observed(&self, peak_s: f64) -> f64 {
         let known = self.config.prior_period_s;
-        let faster_stage = (1.0 / peak_s - 1.0 / known) * span_s > 1.0;
+        let faster_stage = (1.0 / peak_s - 1.0 / known) * self.grid_span_s() > 1.0;
         if self.config.worm_period_known && self.config.additions.configured_worm && !faster_stage {
             known
         } else {
@@ -857,7 +857,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
                 }
             }
             if let Some(p) = self.worm_peak_s {
-                self.trackers[0].observe(self.worm_period_observed(p, self.grid_span_s()));
+                self.trackers[0].observe(self.worm_period_observed(p));
             }
             self.discovery
                 .step(&mut self.trackers, &mut self.gates, &self.config.additions);
