@@ -141,6 +141,23 @@ fn a_seed_gives_the_same_mounts_whatever_the_count() {
     assert_eq!(indices, (1..=40).collect::<Vec<_>>());
 }
 
+/// Nearby seeds drew the same mounts one place apart, so an evaluation
+/// seed near the development one evaluated on the mounts tuned on.
+#[test]
+fn seeds_share_no_mount() {
+    let run_seeds = |seed| {
+        population::draw(seed, 200)
+            .into_iter()
+            .map(|m| m.run_seed)
+            .collect::<std::collections::BTreeSet<_>>()
+    };
+    let development = run_seeds(DEVELOPMENT_SEED);
+    assert_eq!(development.len(), 200);
+    for other in [DEVELOPMENT_SEED - 1, DEVELOPMENT_SEED + 1, 7, 1_000_003] {
+        assert!(development.is_disjoint(&run_seeds(other)), "seed {other}");
+    }
+}
+
 #[test]
 fn csv_rows_have_the_header_s_columns() {
     let header = population::csv_header();

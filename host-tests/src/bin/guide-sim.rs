@@ -196,8 +196,10 @@ enum Command {
 
 #[derive(Args)]
 struct AblateArgs {
-    /// The population's seed (28: the development seed)
-    #[arg(long, value_name = "S", default_value_t = population::DEVELOPMENT_SEED)]
+    /// The population's seed (28: the development seed; seeds below 2^32
+    /// share no mount)
+    #[arg(long, value_name = "S", default_value_t = population::DEVELOPMENT_SEED,
+          value_parser = clap::value_parser!(u64).range(..1 << 32))]
     seed: u64,
     /// How many mounts (the bar: at least 100)
     #[arg(long, value_name = "N", default_value_t = 100,
@@ -210,8 +212,10 @@ struct AblateArgs {
 
 #[derive(Args)]
 struct PopulationArgs {
-    /// The population's seed (28: the development seed)
-    #[arg(long, value_name = "S", default_value_t = population::DEVELOPMENT_SEED)]
+    /// The population's seed (28: the development seed; seeds below 2^32
+    /// share no mount)
+    #[arg(long, value_name = "S", default_value_t = population::DEVELOPMENT_SEED,
+          value_parser = clap::value_parser!(u64).range(..1 << 32))]
     seed: u64,
     /// How many mounts
     #[arg(long, value_name = "N", default_value_t = 200,
