@@ -146,7 +146,8 @@ pub fn tally(activity: Activity, windows: &[Window], frames: &[FrameLearned]) ->
         let end = w.until_us + LEARN_LAG_US;
         let start = w.from_us + w.made_before_us;
         let from = frames.partition_point(|f| f.at_us <= start);
-        let until = frames.partition_point(|f| f.at_us < end);
+        // A window shorter than the frames made before it holds none.
+        let until = frames.partition_point(|f| f.at_us < end).max(from);
         let inside = &frames[from..until];
         t.frames += inside.len() as u32;
         t.learned += inside.iter().filter(|f| f.learned).count() as u32;
@@ -178,5 +179,15 @@ mod tests {
         assert_eq!((t.windows, t.frames, t.learned), (1, 2, 1));
         assert_eq!(t.seconds, 1.0);
         assert_eq!(tally(Activity::Flip, &[w], &frames), Tally::default());
+        // A window that ends before the frames made before it could come
+        // (a short dither's pulse at a long cadence) holds none.
+        let short = Window {
+            from_us: 500_000,
+            until_us: 500_001,
+            made_before_us: 1_000_000,
+            ..w
+        };
+        let t = tally(Activity::Slew, &[short], &frames);
+        assert_eq!((t.windows, t.frames), (1, 0));
     }
 }
