@@ -28,6 +28,12 @@ pub fn night_logs() -> Result<Vec<PathBuf>, Error> {
     text_files(&data_dir().join("phd2-nights"))
 }
 
+/// The PHD2 guide logs `guide-sim night` wrote (`night-logs`: the
+/// scripted night, whose truth lies beside each), sorted by name.
+pub fn simulated_night_logs() -> Result<Vec<PathBuf>, Error> {
+    text_files(&data_dir().join("night-logs"))
+}
+
 /// The `*.txt` files of `dir`, sorted by name; none is an error.
 fn text_files(dir: &Path) -> Result<Vec<PathBuf>, Error> {
     let entries = std::fs::read_dir(dir).map_err(|e| Error::io(dir, &e))?;

@@ -20,7 +20,11 @@
 //! - Dither: the first amount printed by `INFO: DITHER by X, Y` is added to
 //!   c of the first frame after the line. That frame's RAGuideDistance is the
 //!   dither move itself (about -X); with X added the state carries on
-//!   smoothly. This reproduces the traces' inputs to 1e-14 on every frame.
+//!   smoothly after that frame, whose state holds the lock's move. This
+//!   reproduces the traces' inputs to 1e-14 on every frame
+//!   ([`Options::PERFORMANCE_TEST`]). The night's replay measures from the
+//!   first lock instead ([`Options::first_lock`]): X is added to m from
+//!   that frame on and c is as carried out, so no frame holds the move.
 //! - The RMS is over the states after each control, x_1 .. x_{n-2}. That
 //!   reproduces INDIGO's improvements (docs/reference.md) 0.27, 0.10, 12.26, 8.31 and
 //!   2.22 % (the states before the control give 12.18 % on log 03).
@@ -83,6 +87,12 @@ pub struct Options {
     pub pause_cadences: Option<f64>,
     /// Dithers, with the gear time they shift (the model settles).
     pub dithers: bool,
+    /// Each frame measured from the section's first lock position: a
+    /// dither's move of the lock is taken out of the measurements, and its
+    /// recentring move left in the corrections (`replay::measurements`).
+    /// Without it (INDIGO's convention) the dither's row measures the
+    /// lock's move and the algorithm's answer to it is replayed and scored.
+    pub first_lock: bool,
     /// `Settling started` without a dither: settle.
     pub settling: bool,
 }
@@ -102,16 +112,16 @@ impl Options {
         pause_cadences: None,
         dithers: false,
         settling: false,
+        first_lock: false,
     };
 }
 
 /// The night's replay: the time step of the frames' own cadence where they
 /// come slower than the exposure, frames without a star and pauses told as
-/// such. Dithers are not told: the replay takes a dither's move out of the
-/// corrections (the convention above), so the state after it is the gear's
-/// own motion, and a model told of it would settle on an error that is not
-/// there (log 01's ten dithers: -1.17 % for MKGP); for the same reason
-/// neither is settling.
+/// such, every frame measured from the first lock. Dithers are not told:
+/// the replay takes a dither's move out of the measurements, so the state
+/// is the gear's own motion, and a model told of it would settle on an
+/// error that is not there; for the same reason neither is settling.
 impl Default for Options {
     fn default() -> Self {
         Options {
@@ -120,6 +130,7 @@ impl Default for Options {
             pause_cadences: Some(PAUSE_CADENCES),
             dithers: false,
             settling: false,
+            first_lock: true,
         }
     }
 }
@@ -158,6 +169,24 @@ pub fn corrections(section: &Section) -> Vec<f64> {
         c[next] += x;
     }
     c
+}
+
+/// The measurements m[i] and corrections c[i] of a section: from the lock
+/// of its first frame with [`Options::first_lock`] (each dither's amount
+/// added to every measurement from its row on, the corrections as the
+/// mount carried them out), else as [`corrections`] has them.
+pub fn measurements(section: &Section, first_lock: bool) -> (Vec<f64>, Vec<f64>) {
+    let mut m: Vec<f64> = section.frames.iter().map(|f| f.ra_raw).collect();
+    if !first_lock {
+        return (m, corrections(section));
+    }
+    for (next, x, _) in section.dithers() {
+        for v in m.iter_mut().skip(next) {
+            *v += x;
+        }
+    }
+    let c = section.frames.iter().map(|f| f.ra_applied).collect();
+    (m, c)
 }
 
 /// Replay `log` with `algorithm`, the default [`Options`].

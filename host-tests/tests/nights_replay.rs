@@ -237,6 +237,26 @@ fn the_public_night_replays_section_by_section() {
     }
 }
 
+/// Issue 27's replay goals on the scripted nights `guide-sim night` wrote
+/// (data/night-logs: seven sections each, dithers of up to 40 px, pauses,
+/// slews and a flip): the whole night's MKGP gain at least 0 and at least
+/// its sections' replayed alone, no section below -0.5 %.
+#[test]
+fn the_simulated_nights_meet_the_replay_goals() {
+    let paths = data::simulated_night_logs().unwrap();
+    assert_eq!(paths.len(), 3);
+    let misses: Vec<String> = paths
+        .par_iter()
+        .filter_map(|p| {
+            let log = phd2_log::load(p).unwrap_or_else(|e| panic!("{e}"));
+            let goals = report::report(&log, true).unwrap().goals().unwrap();
+            println!("{}: {goals:?}", log.name());
+            (!goals.met()).then(|| format!("{}: {goals:?}", log.name()))
+        })
+        .collect();
+    assert!(misses.is_empty(), "{misses:#?}");
+}
+
 /// A section restarts hysteresis' memory and the model's state starts at
 /// the section's first error; a log of one section replays as before.
 #[test]
@@ -440,6 +460,13 @@ fn options_benchmark() {
             "settling",
             Options {
                 settling: true,
+                ..base
+            },
+        ),
+        (
+            "from the first lock",
+            Options {
+                first_lock: true,
                 ..base
             },
         ),

@@ -1,7 +1,7 @@
 //! One guiding section of the replay (the conventions are the module's,
 //! `replay`).
 
-use super::{corrections, pointing, Options, TimeStep, SLOW_CADENCE};
+use super::{measurements, pointing, Options, TimeStep, SLOW_CADENCE};
 use crate::guide_algorithm::GuideAlgorithm;
 use crate::phd2_log::{EventKind, Section};
 
@@ -13,8 +13,7 @@ pub fn replay(
     options: &Options,
 ) -> (usize, f64) {
     let f = &section.frames;
-    let m: Vec<f64> = f.iter().map(|f| f.ra_raw).collect();
-    let c = corrections(section);
+    let (m, c) = measurements(section, options.first_lock);
     let cadence = cadence_s(section);
     let fixed = step_s(section, options.time_step, cadence);
     let step = |t: f64, next: f64| fixed.unwrap_or(next - t);
