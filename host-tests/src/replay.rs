@@ -161,31 +161,23 @@ pub struct LogResult {
     pub sections: Vec<SectionResult>,
 }
 
-/// The corrections c[i] of a section: what the mount carried out plus the
-/// dither amounts.
-pub fn corrections(section: &Section) -> Vec<f64> {
-    let mut c: Vec<f64> = section.frames.iter().map(|f| f.ra_applied).collect();
-    for (next, x, _) in section.dithers() {
-        c[next] += x;
-    }
-    c
-}
-
-/// The measurements m[i] and corrections c[i] of a section: from the lock
-/// of its first frame with [`Options::first_lock`] (each dither's amount
-/// added to every measurement from its row on, the corrections as the
-/// mount carried them out), else as [`corrections`] has them.
+/// The measurements m[i] and corrections c[i] (what the mount carried
+/// out) of a section, each dither's amount X added: with
+/// [`Options::first_lock`] to every measurement from its row on (each
+/// measured from the section's first lock), else to the correction of its
+/// row (INDIGO's convention, above).
 pub fn measurements(section: &Section, first_lock: bool) -> (Vec<f64>, Vec<f64>) {
     let mut m: Vec<f64> = section.frames.iter().map(|f| f.ra_raw).collect();
-    if !first_lock {
-        return (m, corrections(section));
-    }
+    let mut c: Vec<f64> = section.frames.iter().map(|f| f.ra_applied).collect();
     for (next, x, _) in section.dithers() {
-        for v in m.iter_mut().skip(next) {
-            *v += x;
+        if first_lock {
+            for v in m.iter_mut().skip(next) {
+                *v += x;
+            }
+        } else {
+            c[next] += x;
         }
     }
-    let c = section.frames.iter().map(|f| f.ra_applied).collect();
     (m, c)
 }
 

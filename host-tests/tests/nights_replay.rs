@@ -534,7 +534,7 @@ fn dataset(n: &str) -> GuideLog {
 fn one_in(log: &GuideLog, k: usize) -> GuideLog {
     let mut out = log.clone();
     for s in &mut out.sections {
-        let c = replay::corrections(s);
+        let (_, c) = replay::measurements(s, false);
         s.frames = (0..s.frames.len())
             .step_by(k)
             .map(|i| {
