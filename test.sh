@@ -151,6 +151,10 @@ fi
 step "cargo doc (warnings are errors)"
 RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --workspace
 RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --lib --no-default-features --target "$HOST"
+(cd target-tests && RUSTDOCFLAGS="-D warnings" cargo doc --no-deps)
+if [ "$HAVE_HOST_TESTS" = 1 ]; then
+    (cd host-tests && RUSTDOCFLAGS="-D warnings" cargo doc --no-deps)
+fi
 
 # --- 2. the library's unit tests and the host tests ---------------------------
 step "library unit tests (cargo test --release --lib on $HOST)"

@@ -1,12 +1,12 @@
 //! PHD2's causal replay of a guide log (docs/reference.md section 3), one
 //! guiding section after another.
 //!
-//! With m[i] = RARawDistance and c[i] the correction the mount carried out
+//! With `m[i]` = RARawDistance and `c[i]` the correction the mount carried out
 //! (RAGuideDistance, or the pulse where it was cut short: `row::applied`;
 //! plus any dither) of a section's frames, the simulated mount state
-//! starts at x_0 = m[0]; at frame i the guide algorithm sees x_i (with the
+//! starts at `x_0 = m[0]`; at frame i the guide algorithm sees x_i (with the
 //! row's time and SNR, and a time step: [`TimeStep`]) and returns u_i,
-//! and the state moves by (m[i+1] - (m[i] - c[i])) - u_i: the gear's own
+//! and the state moves by `(m[i+1] - (m[i] - c[i])) - u_i`: the gear's own
 //! motion between the frames as the log recorded it, minus the simulated
 //! control. The gear error is the integral of the applied corrections plus
 //! the measured error whatever guided the night (PHD2's predictive guider
@@ -161,7 +161,7 @@ pub struct LogResult {
     pub sections: Vec<SectionResult>,
 }
 
-/// The measurements m[i] and corrections c[i] (what the mount carried
+/// The measurements `m[i]` and corrections `c[i]` (what the mount carried
 /// out) of a section, each dither's amount X added: with
 /// [`Options::first_lock`] to every measurement from its row on (each
 /// measured from the section's first lock), else to the correction of its
