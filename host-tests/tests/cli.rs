@@ -319,6 +319,7 @@ fn each_subcommand_help_lists_its_options() {
                 "--csv",
                 "--phd2-log <FILE>",
                 "--truth <FILE>",
+                "--trace <FILE>",
                 "--without <NAME>",
             ],
         ),

@@ -13,7 +13,7 @@ use host_tests::data::{self, cases_file};
 use host_tests::night::goals;
 use host_tests::night::ledger::Activity;
 use host_tests::night::script::{self, Kind, Way, What, DEFAULT};
-use host_tests::night::session::TRUTH_HEADER;
+use host_tests::night::session::{learner_header, TRUTH_HEADER};
 use host_tests::night::{self, NightRun, MAX_RATE_SIDEREAL};
 use host_tests::phd2_log;
 use host_tests::st4_sim::Firmware;
@@ -111,7 +111,7 @@ fn test_night() -> &'static TestNight {
         let run = |fw, log| night::run(&c, fw, 1.0, 1, DEFAULT, Additions::ALL, log).unwrap();
         let (alone, mkgp) = rayon::join(
             || run(Firmware::GuiderOnly, true),
-            || run(Firmware::Mkgp, false),
+            || run(Firmware::Mkgp, true),
         );
         TestNight { alone, mkgp }
     })
@@ -314,6 +314,53 @@ fn the_phd2_log_reads_back() {
     assert!(text.contains(",\"DROP\",,,,,,,,,,,,,0,0.00,3,\"Star lost - low mass\"\n"));
     assert!(text.contains("\nINFO: SETTLING STATE CHANGE, Settling complete\n"));
     assert!(text.contains("Pier side = East"), "after the flip");
+}
+
+/// The learner's trace (`guide-sim night --trace`): a row per guide row of
+/// the MKGP night, in order, each as its header names, counting what the
+/// learner took up to the counters at the night's end.
+#[test]
+fn the_learner_trace_follows_the_guide_rows() {
+    let n = test_night();
+    let logs = n.mkgp.logs.as_ref().expect("the MKGP night's logs");
+    let header = learner_header();
+    let mut lines = logs.learner.lines();
+    assert_eq!(lines.next(), Some(header.as_str()));
+    let columns = header.split(',').count();
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|f| f.parse().unwrap()).collect())
+        .collect();
+    let truth: Vec<Vec<f64>> = logs
+        .truth
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|f| f.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), truth.len());
+    let col = |name: &str| header.split(',').position(|c| c == name).unwrap();
+    let (frames, learned, gate) = (col("frames"), col("learned"), col("gate_1"));
+    for (i, (r, t)) in rows.iter().zip(&truth).enumerate() {
+        assert_eq!(r.len(), columns, "row {i}");
+        // Section, frame, time and gear time as the truth's row.
+        assert_eq!(r[..4], t[..4], "row {i}");
+        assert!(r.iter().all(|x| x.is_finite()), "row {i}: {r:?}");
+        assert!(r[learned] <= r[frames], "row {i}");
+        if let Some(before) = i.checked_sub(1).map(|k| &rows[k]) {
+            assert!(r[frames] >= before[frames] && r[learned] >= before[learned]);
+        }
+        // The worm's gate is 1, every gate within 0..=1.
+        assert_eq!(r[gate], 1.0, "row {i}");
+        for g in (gate..columns).step_by(2) {
+            assert!((0.0..=1.0).contains(&r[g]), "row {i}: {r:?}");
+        }
+    }
+    let last = rows.last().expect("guide rows");
+    let c = n.mkgp.counters.learner;
+    assert!(last[frames] <= c.frames as f64 && last[learned] <= c.learned as f64);
+    assert!(last[learned] > 0.5 * c.learned as f64, "{last:?} {c:?}");
+    // The guider alone has no learner: the header alone.
+    let alone = &n.alone.logs.as_ref().expect("the guider's log").learner;
+    assert_eq!(alone.trim_end(), header);
 }
 
 /// The night logs in `data/night-logs`: each is what `guide-sim night`

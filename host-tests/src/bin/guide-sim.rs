@@ -12,7 +12,7 @@
 //! guide-sim nights [--case ID] [--cases FILE] [--noise PX] [--park] [--csv]
 //!                  [--without NAME]...
 //! guide-sim night [--case ID] [--cases FILE] [--noise PX] [--seed N] [--csv]
-//!                 [--phd2-log FILE] [--truth FILE] [--without NAME]...
+//!                 [--phd2-log FILE] [--truth FILE] [--trace FILE] [--without NAME]...
 //! guide-sim mount [--pty PATH] [--tcp PORT] [--case ID] [--cases FILE] [--noise PX]
 //!                 [--speed X] [--no-st4-guider]
 //! guide-sim view (--port DEVICE | --pty PATH | --tcp HOST:PORT) [--listen ADDR:PORT]
@@ -128,7 +128,8 @@ enum Command {
     /// noise 0 and 1 px, seeds 1-3 (48 nights, progress on stderr); --case,
     /// --noise and --seed pick one. One night prints its sections and what the
     /// firmware counted. --phd2-log FILE (one night) writes the guider alone's
-    /// side as a PHD2 guide log, --truth FILE the true gear error per guide row.
+    /// side as a PHD2 guide log, --truth FILE the true gear error per guide row,
+    /// --trace FILE what fw MKGP's learner holds after each guide row.
     #[command(verbatim_doc_comment)]
     Night(NightArgs),
     /// A virtual mount for LX200 clients: the firmware's loop on a pty, in real time
@@ -421,6 +422,11 @@ struct NightArgs {
     /// Write the true gear error per guide row of that log as CSV (one night only)
     #[arg(long, value_name = "FILE")]
     truth: Option<PathBuf>,
+    /// Write what fw MKGP's learner holds after each guide row as CSV: its
+    /// shares and weights, the frames it learned, each stage's period (one
+    /// night only)
+    #[arg(long, value_name = "FILE")]
+    trace: Option<PathBuf>,
     /// Switch off this addition around the paper's model (repeatable; `ablate --help`)
     #[arg(long, value_name = "NAME", value_parser = addition_name)]
     without: Vec<String>,
@@ -883,9 +889,9 @@ fn cmd_night(args: NightArgs) -> ExitCode {
     let seeds = args.seed.map_or(st4_sim::SEEDS.to_vec(), |s| vec![s]);
     let script = night::script::DEFAULT;
     let one = cases.len() == 1 && levels.len() == 1 && seeds.len() == 1;
-    let logs = args.phd2_log.is_some() || args.truth.is_some();
+    let logs = args.phd2_log.is_some() || args.truth.is_some() || args.trace.is_some();
     if logs && !one {
-        eprintln!("guide-sim night: --phd2-log and --truth need one night: give --case, --noise and --seed");
+        eprintln!("guide-sim night: --phd2-log, --truth and --trace need one night: give --case, --noise and --seed");
         return ExitCode::from(2);
     }
     let additions = additions_without(&args.without);
@@ -913,8 +919,13 @@ fn cmd_night(args: NightArgs) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    if let Some(logs) = nights[0].guider_only.logs.as_ref() {
-        for (path, text) in [(&args.phd2_log, &logs.phd2), (&args.truth, &logs.truth)] {
+    let night = &nights[0];
+    if let (Some(alone), Some(mkgp)) = (&night.guider_only.logs, &night.fw_mkgp.logs) {
+        for (path, text) in [
+            (&args.phd2_log, &alone.phd2),
+            (&args.truth, &alone.truth),
+            (&args.trace, &mkgp.learner),
+        ] {
             if let Some(p) = path {
                 if let Err(e) = std::fs::write(p, text) {
                     eprintln!("guide-sim night: cannot write {}: {e}", p.display());

@@ -156,7 +156,8 @@ pub struct Night {
 }
 
 /// The three firmwares on one night (in parallel), running `additions`;
-/// the guider alone writes its PHD2 log if `log`.
+/// if `log`, each writes its logs (the guider alone's PHD2 log and truth,
+/// the MKGP learner's rows).
 pub fn night(
     case: &Case,
     noise_px: f64,
@@ -168,7 +169,7 @@ pub fn night(
     let fw = |f, log| run(case, f, noise_px, seed, script, additions, log);
     let (guider_only, (fw_ppec, fw_mkgp)) = rayon::join(
         || fw(Firmware::GuiderOnly, log),
-        || rayon::join(|| fw(Firmware::Ppec, false), || fw(Firmware::Mkgp, false)),
+        || rayon::join(|| fw(Firmware::Ppec, false), || fw(Firmware::Mkgp, log)),
     );
     Ok(Night {
         case: case.name.clone(),

@@ -21,6 +21,7 @@ use crate::noise::Gaussian;
 use crate::st4_sim::{Exposure, GuiderSettings, Rig};
 use mkgp_mount::control_loop::port_mount::PortState;
 use mkgp_mount::mount::config::SIDEREAL_ARCSEC_PER_S;
+use mkgp_mount::mount::learner::FIRMWARE_STAGES;
 use mkgp_mount::mount::st4::Line;
 use mkgp_mount::port::mount_port::ManualRate;
 use mkgp_mount::port::{Interpreter, ReplySink};
@@ -71,11 +72,39 @@ pub struct GuideLogs {
     /// pointing_px,ra_raw_px` (the mean gear error and the mean pointing
     /// minus the lock over the exposure, without the camera's noise).
     pub truth: String,
+    /// Per guide row, with the MKGP firmware: what its learner holds after
+    /// the row ([`learner_header`]); the header alone with the other
+    /// firmwares.
+    pub learner: String,
 }
 
 /// The header of [`GuideLogs::truth`].
 pub const TRUTH_HEADER: &str =
     "section,frame,time_s,gear_time_s,gear_error_px,pointing_px,ra_raw_px";
+
+/// The header of [`GuideLogs::learner`]: the row as in the truth, the
+/// pointing and the guider's RA correction (px), the share of the pulses
+/// carried out, the part of a pulse learned, the feed-forward's weight, the
+/// model's blend weight, the frames the learner took and learned and the
+/// framer filled so far, and each stage's tracked period (s) and gate
+/// (0: the stage is not in the model).
+pub fn learner_header() -> String {
+    let mut h = String::from(
+        "section,frame,time_s,gear_time_s,pointing_px,guide_px,pulse_share,pulse_weight,\
+         feed_forward_weight,blend_weight,frames,learned,filled_frames",
+    );
+    for s in 1..=FIRMWARE_STAGES {
+        let _ = write!(h, ",period_{s}_s,gate_{s}");
+    }
+    h
+}
+
+/// The logs of a night being written.
+struct Logging {
+    phd2: Phd2Writer,
+    truth: String,
+    learner: String,
+}
 
 /// What the imaging sequence is doing.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -170,7 +199,7 @@ pub struct Session {
     port: Interpreter,
     port_state: PortState,
     dec_noise: Option<(f64, Gaussian)>,
-    log: Option<(Phd2Writer, String)>,
+    log: Option<Logging>,
     flips: u32,
     hand_hours: f64,
     section: Option<Active>,
@@ -234,7 +263,11 @@ impl Session {
             port: Interpreter::default(),
             port_state,
             dec_noise: (noise_px > 0.0).then(|| (noise_px, Gaussian::new(seed + 2000))),
-            log: log.then(|| (Phd2Writer::new(), format!("{TRUTH_HEADER}\n"))),
+            log: log.then(|| Logging {
+                phd2: Phd2Writer::new(),
+                truth: format!("{TRUTH_HEADER}\n"),
+                learner: format!("{}\n", learner_header()),
+            }),
             flips: 0,
             hand_hours: 0.0,
             section: None,
@@ -259,15 +292,16 @@ impl Session {
             sections: self.sections,
             windows: self.windows,
             dithers: self.dithers,
-            logs: self.log.map(|(w, truth)| GuideLogs {
-                phd2: w.close(end_s),
-                truth,
+            logs: self.log.map(|l| GuideLogs {
+                phd2: l.phd2.close(end_s),
+                truth: l.truth,
+                learner: l.learner,
             }),
         }
     }
 
     fn writer(&mut self) -> Option<&mut Phd2Writer> {
-        self.log.as_mut().map(|(w, _)| w)
+        self.log.as_mut().map(|l| &mut l.phd2)
     }
 
     fn info(&mut self, message: &str) {
@@ -833,16 +867,54 @@ impl Session {
         };
         let index = a.index;
         self.settle(ra_raw.hypot(dec_off), c.dither);
-        if let Some((w, truth)) = self.log.as_mut() {
-            w.row(&row);
+        if self.log.is_none() {
+            return;
+        }
+        let learner = self.learner_row(index + 1, frame, time_s, gear_time, e, c.arcsec);
+        if let Some(l) = self.log.as_mut() {
+            l.phd2.row(&row);
             let _ = writeln!(
-                truth,
+                l.truth,
                 "{},{frame},{time_s:.3},{gear_time:.3},{:.4},{:.4},{ra_raw:.4}",
                 index + 1,
                 e.gear_error_arcsec,
                 e.pointing_arcsec
             );
+            if let Some(r) = learner {
+                let _ = writeln!(l.learner, "{r}");
+            }
         }
+    }
+
+    /// A row of [`GuideLogs::learner`], with the MKGP firmware.
+    fn learner_row(
+        &mut self,
+        section: usize,
+        frame: u32,
+        time_s: f64,
+        gear_time: f64,
+        e: Exposure,
+        guide_px: f64,
+    ) -> Option<String> {
+        let share = self.rig.pulse_share();
+        let weight = self.rig.pulse_weight();
+        let filled = self.rig.guiding_counters().filled_frames;
+        let counters = self.rig.learner_counters();
+        let l = self.rig.mkgp_learner()?;
+        let mut r = format!(
+            "{section},{frame},{time_s:.3},{gear_time:.3},{:.4},{guide_px:.4},{share:.4},\
+             {weight:.4},{:.4},{:.4},{},{},{filled}",
+            e.pointing_arcsec,
+            l.feed_forward_weight(),
+            l.guider().blend_weight(),
+            counters.frames,
+            counters.learned,
+        );
+        let g = l.guider();
+        for (s, p) in g.periods_s().iter().enumerate() {
+            let _ = write!(r, ",{p:.3},{:.3}", g.gate(s));
+        }
+        Some(r)
     }
 
     /// PHD2's settling on a row `distance` px from the lock.
