@@ -251,17 +251,20 @@ fn after_a_long_re_pointing_no_section_is_above_the_guider_alone() {
     );
 }
 
+/// The rows of a log's CSV below its header, as numbers.
+fn csv_rows(text: &str) -> Vec<Vec<f64>> {
+    text.lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|f| f.parse().unwrap()).collect())
+        .collect()
+}
+
 #[test]
 fn the_phd2_log_reads_back() {
     let n = test_night();
     let logs = n.alone.logs.as_ref().expect("the guider's log");
     let log = phd2_log::parse(&logs.phd2, Path::new("night.txt")).unwrap_or_else(|e| panic!("{e}"));
-    let truth: Vec<Vec<f64>> = logs
-        .truth
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').map(|f| f.parse().unwrap()).collect())
-        .collect();
+    let truth = csv_rows(&logs.truth);
     assert_eq!(logs.truth.lines().next(), Some(TRUTH_HEADER));
     // Every guide row, in order, with its section's time; one section per
     // start, each with its own exposure.
@@ -324,18 +327,10 @@ fn the_learner_trace_follows_the_guide_rows() {
     let n = test_night();
     let logs = n.mkgp.logs.as_ref().expect("the MKGP night's logs");
     let header = learner_header();
-    let mut lines = logs.learner.lines();
-    assert_eq!(lines.next(), Some(header.as_str()));
+    assert_eq!(logs.learner.lines().next(), Some(header.as_str()));
     let columns = header.split(',').count();
-    let rows: Vec<Vec<f64>> = lines
-        .map(|l| l.split(',').map(|f| f.parse().unwrap()).collect())
-        .collect();
-    let truth: Vec<Vec<f64>> = logs
-        .truth
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').map(|f| f.parse().unwrap()).collect())
-        .collect();
+    let rows = csv_rows(&logs.learner);
+    let truth = csv_rows(&logs.truth);
     assert_eq!(rows.len(), truth.len());
     let col = |name: &str| header.split(',').position(|c| c == name).unwrap();
     let (frames, learned, gate) = (col("frames"), col("learned"), col("gate_1"));
