@@ -423,8 +423,8 @@ struct NightArgs {
     #[arg(long, value_name = "FILE")]
     truth: Option<PathBuf>,
     /// Write what fw MKGP's learner holds after each guide row as CSV: its
-    /// shares and weights, the frames it learned, each stage's period (one
-    /// night only)
+    /// shares and weights, the frames it learned, each stage's period and
+    /// gate (one night only)
     #[arg(long, value_name = "FILE")]
     trace: Option<PathBuf>,
     /// Switch off this addition around the paper's model (repeatable; `ablate --help`)
