@@ -1,6 +1,7 @@
 //! The library's Gaussian-process guider as a [`GuideAlgorithm`].
 
 mod carry;
+pub mod trace;
 
 use crate::guide_algorithm::{GuideAlgorithm, Restart};
 use mkgp_mount::model::additions::Additions;

@@ -4,7 +4,8 @@
 
 use crate::cases::Case;
 use crate::closed_loop::{self, Conditions};
-use crate::gp::Carry;
+use crate::gp::trace::Traced;
+use crate::gp::{Carry, GpAlgorithm};
 use crate::guide_algorithm::{GuideAlgorithm, Hysteresis};
 use crate::models::{self, Model};
 use mkgp_mount::model::additions::Additions;
@@ -57,6 +58,16 @@ pub fn rms_in(
     closed_loop::rms_in(case, sigma_px, seeds, conditions, || {
         make(column, Additions::ALL)
     })
+}
+
+/// One run of MKGP3 (the firmware's three stages) on `case` with
+/// `sigma_px` of noise from `seed` (none at 0), the model's `additions` as
+/// given: its residual RMS over t >= 3600 s and its trace
+/// ([`crate::gp::trace`]), a row per frame.
+pub fn traced_run(case: &Case, sigma_px: f64, seed: u64, additions: Additions) -> (f64, String) {
+    let mut model = Traced::new(GpAlgorithm::<3>::new(None, None).with_additions(additions));
+    let rms = closed_loop::run_in(case, &mut model, sigma_px, seed, &Conditions::PAPER);
+    (rms, model.csv().to_string())
 }
 
 /// Compute the table, one row per case and noise level, in that order; the

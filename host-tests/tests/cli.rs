@@ -47,6 +47,27 @@ fn table_csv() {
 }
 
 #[test]
+fn table_trace_writes_one_run() {
+    let trace = scratch("c1_trace.csv");
+    let o = guide_sim(&["table", "--trace", trace.to_str().unwrap(), "--case", "C1"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // The table's MKGP3 cell of C1 noise-free (docs/results.md).
+    assert!(
+        stdout(&o).starts_with("C1 at 0 px, seed 1: MKGP3 residual RMS 0.177 px"),
+        "{}",
+        stdout(&o)
+    );
+    let text = std::fs::read_to_string(&trace).unwrap();
+    assert_eq!(text.lines().count(), 1 + 5400);
+    // Without --trace the case is refused (clap: 2), an unknown case named.
+    let o = guide_sim(&["table", "--case", "C1"]);
+    assert_eq!(o.status.code(), Some(2));
+    let o = guide_sim(&["table", "--trace", trace.to_str().unwrap(), "--case", "C9"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("no case C9"), "{}", stderr(&o));
+}
+
+#[test]
 fn table_bad_cases_file() {
     let cases = scratch("bad_cases.csv");
     std::fs::write(

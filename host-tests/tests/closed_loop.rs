@@ -1,9 +1,15 @@
 //! The paper's closed loop reproduces the figures of docs/reference.md.
 
 use host_tests::cases::{self, Case};
-use host_tests::closed_loop::{mean_noisy_rms, open_loop_rms, run, Noise};
+use host_tests::closed_loop::{
+    mean_noisy_rms, open_loop_rms, run, Noise, DT, FRAMES, SCORE_FROM_S,
+};
 use host_tests::data;
+use host_tests::gp::trace;
 use host_tests::guide_algorithm::Hysteresis;
+use host_tests::models::{self, Model};
+use host_tests::table;
+use mkgp_mount::model::additions::Additions;
 
 fn cases() -> Vec<Case> {
     cases::load(&data::cases_file()).unwrap_or_else(|e| panic!("{e}"))
@@ -71,4 +77,46 @@ fn open_loop_matches_the_paper() {
 fn open_loop_of_c1_exactly() {
     // C1 is a pure sinusoid + drift: 8.634 in the paper and here.
     assert_eq!(format!("{:.3}", open_loop_rms(&cases()[0])), "8.634");
+}
+
+/// `guide-sim table --trace`: a row per frame of the paper's loop, the run
+/// itself unchanged by the tracing, the error the model was given the
+/// residual the score is taken over (noise-free), and C8's 110 s stage
+/// found and gated in by the end.
+#[test]
+fn the_models_trace_follows_the_frames() {
+    let cases = cases();
+    let c8 = cases.iter().find(|c| c.name == "C8").unwrap();
+    let (rms, csv) = table::traced_run(c8, 0.0, 1, Additions::ALL);
+    let untraced = run(
+        c8,
+        &mut *models::algorithm(Model::Mkgp3, None, None),
+        Noise::None,
+    );
+    assert_eq!(rms, untraced);
+    assert_eq!(csv.lines().next(), Some(trace::header(3).as_str()));
+    let rows: Vec<Vec<f64>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|f| f.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), FRAMES);
+    for (k, r) in rows.iter().enumerate() {
+        assert_eq!(r.len(), 10, "{r:?}");
+        assert_eq!(r[0], k as f64 * DT);
+        assert_eq!(r[5], 1.0, "the worm's gate: {r:?}");
+    }
+    let scored: Vec<f64> = rows
+        .iter()
+        .filter(|r| r[0] >= SCORE_FROM_S)
+        .map(|r| r[1])
+        .collect();
+    let traced = (scored.iter().map(|x| x * x).sum::<f64>() / scored.len() as f64).sqrt();
+    // The trace prints the error to 0.0001 px.
+    assert!((traced - rms).abs() < 1e-4, "{traced} {rms}");
+    let last = rows.last().unwrap();
+    let found = [(last[6], last[7]), (last[8], last[9])]
+        .iter()
+        .any(|&(p, g)| (p / 110.0 - 1.0).abs() < 0.005 && g == 1.0);
+    assert!(found, "{last:?}");
 }

@@ -3,6 +3,7 @@
 //!
 //! ```text
 //! guide-sim table [--cases FILE] [--csv] [--without NAME]...
+//!                 [--trace FILE --case ID [--noise PX] [--seed N]]
 //! guide-sim replay [LOG...] [--csv]
 //! guide-sim bench [--csv] [--host-only]
 //! guide-sim st4 [--case ID] [--cases FILE] [--noise PX] [--csv]
@@ -285,6 +286,21 @@ struct TableArgs {
     /// Switch off this addition around the paper's model (repeatable; `ablate --help`)
     #[arg(long, value_name = "NAME", value_parser = addition_name)]
     without: Vec<String>,
+    /// In place of the table, one run of MKGP3 (three stages, as the
+    /// firmware) on --case: write what the model holds after each frame as
+    /// CSV (the error it was given, its control and blend weight, each
+    /// stage's period and gate) and print the run's residual RMS
+    #[arg(long, value_name = "FILE", requires = "case")]
+    trace: Option<PathBuf>,
+    /// The case of --trace
+    #[arg(long, value_name = "ID", requires = "trace")]
+    case: Option<String>,
+    /// The noise of --trace, px
+    #[arg(long, value_name = "PX", value_parser = noise_px, default_value = "0", requires = "trace")]
+    noise: f64,
+    /// The noise's seed for --trace (the table's 1 px figure is the mean of seeds 1-3)
+    #[arg(long, value_name = "N", default_value = "1", requires = "trace")]
+    seed: u64,
 }
 
 #[derive(Args)]
@@ -540,11 +556,31 @@ fn cmd_table(
         cases,
         csv,
         without,
+        trace,
+        case,
+        noise,
+        seed,
     }: TableArgs,
 ) -> ExitCode {
     let Some((_, cases)) = load_cases(cases) else {
         return ExitCode::FAILURE;
     };
+    if let (Some(path), Some(id)) = (trace, case) {
+        let Some(case) = cases.iter().find(|c| c.name == id) else {
+            eprintln!("guide-sim table: no case {id} in the cases file");
+            return ExitCode::FAILURE;
+        };
+        let (rms, csv) = table::traced_run(case, noise, seed, additions_without(&without));
+        if let Err(e) = std::fs::write(&path, csv) {
+            eprintln!("guide-sim: cannot write {}: {e}", path.display());
+            return ExitCode::FAILURE;
+        }
+        println!(
+            "{id} at {noise} px, seed {seed}: MKGP3 residual RMS {rms:.3} px over t >= 3600 s; trace written to {}",
+            path.display()
+        );
+        return ExitCode::SUCCESS;
+    }
     let rows = table::compute_with(&cases, additions_without(&without));
     if csv {
         println!("case,noise_px,open_loop,reactive,ppec,mkgp,mkgp3");

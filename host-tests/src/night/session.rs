@@ -16,6 +16,7 @@ use super::calibration::{self, Calibration, Leg, Next};
 use super::ledger::{self, Activity, Rms, Window};
 use super::phd2_writer::{Calibrated, Header, Phd2Writer, Pointing, Row};
 use super::script::{self, Event, Section, Way, What};
+use crate::gp::trace;
 use crate::mount_sim::IDENTITY;
 use crate::noise::Gaussian;
 use crate::st4_sim::{Exposure, GuiderSettings, Rig};
@@ -89,14 +90,10 @@ pub const TRUTH_HEADER: &str =
 /// framer filled so far, and each stage's tracked period (s) and gate
 /// (0: the stage is not in the model).
 pub fn learner_header() -> String {
-    let mut h = String::from(
+    String::from(
         "section,frame,time_s,gear_time_s,pointing_px,guide_px,pulse_share,pulse_weight,\
          feed_forward_weight,blend_weight,frames,learned,filled_frames",
-    );
-    for s in 1..=FIRMWARE_STAGES {
-        let _ = write!(h, ",period_{s}_s,gate_{s}");
-    }
-    h
+    ) + &trace::stage_header(FIRMWARE_STAGES)
 }
 
 /// The logs of a night being written.
@@ -910,10 +907,7 @@ impl Session {
             counters.frames,
             counters.learned,
         );
-        let g = l.guider();
-        for (s, p) in g.periods_s().iter().enumerate() {
-            let _ = write!(r, ",{p:.3},{:.3}", g.gate(s));
-        }
+        r += &trace::stage_values(l.guider());
         Some(r)
     }
 
