@@ -45,7 +45,8 @@ mod section;
 pub mod table;
 
 use crate::data::Error;
-use crate::gp::Carry;
+use crate::gp::trace::Traced;
+use crate::gp::{Carry, GpAlgorithm};
 use crate::guide_algorithm::{GuideAlgorithm, Hysteresis, Restart};
 use crate::models::{self, Model};
 use crate::phd2_log::{GuideLog, Section};
@@ -279,6 +280,18 @@ pub fn run_model(log: &GuideLog, model: Model) -> Result<ReplayResult, Error> {
 /// `model` with the replay's gains, as a fresh algorithm.
 pub fn model_algorithm(model: Model) -> Box<dyn GuideAlgorithm> {
     models::algorithm(model, Some(CONTROL_GAIN), Some(PREDICTION_GAIN))
+}
+
+/// MKGP's replay of `log` as the `mkgp` column runs it (two stages, the
+/// replay's gains, carried across sections), traced: its result and what
+/// the model holds after each call ([`crate::gp::trace`], on the log's
+/// clock: `Section::start_s` plus `Time`).
+pub fn traced_mkgp(log: &GuideLog) -> Result<(ReplayResult, String), Error> {
+    let model = GpAlgorithm::<2>::new(Some(CONTROL_GAIN), Some(PREDICTION_GAIN))
+        .with_carry(Carry::default());
+    let mut traced = Traced::new(model);
+    let result = run(log, &mut traced)?;
+    Ok((result, traced.csv().to_string()))
 }
 
 /// `model`'s gain in percent over PHD2's hysteresis 0.7 on `log`.

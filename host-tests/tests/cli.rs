@@ -68,6 +68,38 @@ fn table_trace_writes_one_run() {
 }
 
 #[test]
+fn replay_trace_writes_one_log() {
+    let night = "data/phd2-nights/PHD2_GuideLog_2026-01-28_174028.txt";
+    let trace = scratch("night_trace.csv");
+    let o = guide_sim(&["replay", "--trace", trace.to_str().unwrap(), night]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // The replay's MKGP over its 1,897 frames (docs/results.md).
+    assert!(
+        stdout(&o).contains(": MKGP RMS 0.4551 px over 1897 frames; trace written to"),
+        "{}",
+        stdout(&o)
+    );
+    let text = std::fs::read_to_string(&trace).unwrap();
+    assert!(text.starts_with("time_s,measured_px,control_px,blend_weight,period_1_s"));
+    // One log only (clap's usage code), and a log that cannot be read named.
+    let o = guide_sim(&["replay", "--trace", trace.to_str().unwrap(), night, night]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("--trace needs one LOG"),
+        "{}",
+        stderr(&o)
+    );
+    let o = guide_sim(&[
+        "replay",
+        "--trace",
+        trace.to_str().unwrap(),
+        "/nonexistent.txt",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("/nonexistent.txt"), "{}", stderr(&o));
+}
+
+#[test]
 fn table_bad_cases_file() {
     let cases = scratch("bad_cases.csv");
     std::fs::write(
@@ -303,7 +335,10 @@ fn each_subcommand_help_lists_its_options() {
             "table",
             &["--cases <FILE>", "--csv", "--without <NAME>"][..],
         ),
-        ("replay", &["[LOG]...", "--csv", "--per-section"]),
+        (
+            "replay",
+            &["[LOG]...", "--csv", "--per-section", "--trace <FILE>"],
+        ),
         ("bench", &["--csv", "--host-only"]),
         (
             "st4",

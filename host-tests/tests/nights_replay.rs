@@ -8,7 +8,7 @@ mod common;
 
 use common::nights::{self, Piece};
 use host_tests::data;
-use host_tests::gp::Carry;
+use host_tests::gp::{trace, Carry};
 use host_tests::guide_algorithm::{GuideAlgorithm, Hysteresis, Restart};
 use host_tests::models::{self, Model};
 use host_tests::phd2_log::{self, GuideLog};
@@ -235,6 +235,34 @@ fn the_public_night_replays_section_by_section() {
             assert!(v.is_finite() && v < 10.0, "{f:?}");
         }
     }
+}
+
+/// `replay --trace`: the traced replay is the `mkgp` column's own (the
+/// same RMS to the bit), with one row per call of the model, in the log's
+/// clock order, a measured error on each frame with a star.
+#[test]
+fn the_replays_trace_follows_the_frames() {
+    let paths = data::night_logs().unwrap();
+    let night = paths
+        .iter()
+        .find(|p| p.to_string_lossy().contains("2026-01-28"))
+        .unwrap();
+    let log = phd2_log::load(night).unwrap_or_else(|e| panic!("{e}"));
+    let (traced, csv) = replay::traced_mkgp(&log).unwrap();
+    assert_eq!(traced, replay::run_model(&log, Model::Mkgp).unwrap());
+    assert_eq!(csv.lines().next(), Some(trace::header(2).as_str()));
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert!(rows.iter().all(|r| r.len() == 8), "{rows:?}");
+    let measured = rows.iter().filter(|r| !r[1].is_empty()).count();
+    assert_eq!(measured, traced.frames);
+    let times: Vec<f64> = rows.iter().map(|r| r[0].parse().unwrap()).collect();
+    assert!(times.windows(2).all(|w| w[0] <= w[1]));
+    // The last section begins 9,313 s into the night (its header's clock).
+    assert!(times.last().unwrap() > &9313.0, "{:?}", times.last());
 }
 
 /// Issue 27's replay goals on the scripted nights `guide-sim night` wrote

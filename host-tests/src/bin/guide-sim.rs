@@ -4,7 +4,7 @@
 //! ```text
 //! guide-sim table [--cases FILE] [--csv] [--without NAME]...
 //!                 [--trace FILE --case ID [--noise PX] [--seed N]]
-//! guide-sim replay [LOG...] [--csv]
+//! guide-sim replay [LOG...] [--csv] [--per-section] [--trace FILE]
 //! guide-sim bench [--csv] [--host-only]
 //! guide-sim st4 [--case ID] [--cases FILE] [--noise PX] [--csv]
 //!               [--aggressiveness A] [--exposure S] [--min-move PX] [--calibration K]
@@ -315,6 +315,12 @@ struct ReplayArgs {
     /// A row per guiding section, then the whole log's
     #[arg(long)]
     per_section: bool,
+    /// Write what MKGP holds after each frame of the one LOG as CSV: the
+    /// error it was given, its control and blend weight, each stage's
+    /// period and gate (time on the log's clock, as --per-section's
+    /// start_s)
+    #[arg(long, value_name = "FILE")]
+    trace: Option<PathBuf>,
 }
 
 #[derive(Args)]
@@ -625,8 +631,16 @@ fn cmd_replay(
         logs,
         csv,
         per_section,
+        trace,
     }: ReplayArgs,
 ) -> ExitCode {
+    if let Some(path) = trace {
+        let [log] = &logs[..] else {
+            eprintln!("guide-sim replay: --trace needs one LOG");
+            return ExitCode::from(2);
+        };
+        return replay_trace(log, &path);
+    }
     let paths = if logs.is_empty() {
         match data::phd2_logs().and_then(|mut p| {
             p.extend(data::night_logs()?);
@@ -676,6 +690,30 @@ fn cmd_replay(
     } else {
         ExitCode::SUCCESS
     }
+}
+
+/// `replay --trace`: MKGP on `log`, its trace written to `path`.
+fn replay_trace(log: &Path, path: &Path) -> ExitCode {
+    let traced = phd2_log::load(log).and_then(|l| replay::traced_mkgp(&l));
+    let (result, csv) = match traced {
+        Ok(t) => t,
+        Err(e) => {
+            eprintln!("guide-sim: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    if let Err(e) = std::fs::write(path, csv) {
+        eprintln!("guide-sim: cannot write {}: {e}", path.display());
+        return ExitCode::FAILURE;
+    }
+    println!(
+        "{}: MKGP RMS {:.4} px over {} frames; trace written to {}",
+        log.display(),
+        result.rms,
+        result.frames,
+        path.display()
+    );
+    ExitCode::SUCCESS
 }
 
 fn cmd_bench(BenchArgs { csv, host_only }: BenchArgs) -> ExitCode {

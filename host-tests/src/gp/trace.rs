@@ -1,6 +1,6 @@
-//! What the model holds after each frame, as CSV rows: the trace
-//! `guide-sim table --trace` writes, and the stage columns the night's
-//! learner trace shares.
+//! What the model holds after each frame, as CSV rows: the traces
+//! `guide-sim table --trace` and `guide-sim replay --trace` write, and the
+//! stage columns the night's learner trace shares.
 
 use super::GpAlgorithm;
 use crate::guide_algorithm::{GuideAlgorithm, Restart};
