@@ -206,18 +206,23 @@ fn carrying_the_model_across_sections_pays() {
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
+/// The public night of data/phd2-nights.
+fn public_night() -> GuideLog {
+    let paths = data::night_logs().unwrap();
+    let night = paths
+        .iter()
+        .find(|p| p.to_string_lossy().contains("2026-01-28"))
+        .unwrap();
+    phd2_log::load(night).unwrap_or_else(|e| panic!("{e}"))
+}
+
 /// The public night (data/phd2-nights): its sections as PHD2 wrote them,
 /// the calibration and the two sections on a saturated star (every row far
 /// beyond the search region: frames PHD2 lost) left out, and every figure
 /// of the replay finite.
 #[test]
 fn the_public_night_replays_section_by_section() {
-    let paths = data::night_logs().unwrap();
-    let night = paths
-        .iter()
-        .find(|p| p.to_string_lossy().contains("2026-01-28"))
-        .unwrap();
-    let log = phd2_log::load(night).unwrap_or_else(|e| panic!("{e}"));
+    let log = public_night();
     assert_eq!(log.sections.len(), 14);
     let exposures: Vec<f64> = log.sections.iter().map(|s| s.exposure_s).collect();
     assert_eq!(&exposures[..3], &[0.35, 0.35, 0.3]);
@@ -242,12 +247,7 @@ fn the_public_night_replays_section_by_section() {
 /// clock order, a measured error on each frame with a star.
 #[test]
 fn the_replays_trace_follows_the_frames() {
-    let paths = data::night_logs().unwrap();
-    let night = paths
-        .iter()
-        .find(|p| p.to_string_lossy().contains("2026-01-28"))
-        .unwrap();
-    let log = phd2_log::load(night).unwrap_or_else(|e| panic!("{e}"));
+    let log = public_night();
     let (traced, csv) = replay::traced_mkgp(&log).unwrap();
     assert_eq!(traced, replay::run_model(&log, Model::Mkgp).unwrap());
     assert_eq!(csv.lines().next(), Some(trace::header(2).as_str()));
