@@ -577,8 +577,7 @@ fn cmd_table(
             return ExitCode::FAILURE;
         };
         let (rms, csv) = table::traced_run(case, noise, seed, additions_without(&without));
-        if let Err(e) = std::fs::write(&path, csv) {
-            eprintln!("guide-sim: cannot write {}: {e}", path.display());
+        if !written(&path, &csv) {
             return ExitCode::FAILURE;
         }
         println!(
@@ -610,20 +609,13 @@ fn cmd_table(
         );
     }
     let out = Path::new("guide-sim-table.svg");
-    match std::fs::write(
-        out,
-        svg::table_chart(&rows, "settled residual RMS (px), frames t >= 3600 s"),
-    ) {
-        Ok(()) => {
-            let shown = std::fs::canonicalize(out).unwrap_or_else(|_| out.to_path_buf());
-            println!("bar chart written to {}", shown.display());
-            ExitCode::SUCCESS
-        }
-        Err(e) => {
-            eprintln!("guide-sim: cannot write {}: {e}", out.display());
-            ExitCode::FAILURE
-        }
+    let chart = svg::table_chart(&rows, "settled residual RMS (px), frames t >= 3600 s");
+    if !written(out, &chart) {
+        return ExitCode::FAILURE;
     }
+    let shown = std::fs::canonicalize(out).unwrap_or_else(|_| out.to_path_buf());
+    println!("bar chart written to {}", shown.display());
+    ExitCode::SUCCESS
 }
 
 fn cmd_replay(
@@ -702,8 +694,7 @@ fn replay_trace(log: &Path, path: &Path) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    if let Err(e) = std::fs::write(path, csv) {
-        eprintln!("guide-sim: cannot write {}: {e}", path.display());
+    if !written(path, &csv) {
         return ExitCode::FAILURE;
     }
     println!(
@@ -714,6 +705,17 @@ fn replay_trace(log: &Path, path: &Path) -> ExitCode {
         path.display()
     );
     ExitCode::SUCCESS
+}
+
+/// Writes `text` to `path`; false (said on stderr) where it cannot.
+fn written(path: &Path, text: &str) -> bool {
+    match std::fs::write(path, text) {
+        Ok(()) => true,
+        Err(e) => {
+            eprintln!("guide-sim: cannot write {}: {e}", path.display());
+            false
+        }
+    }
 }
 
 fn cmd_bench(BenchArgs { csv, host_only }: BenchArgs) -> ExitCode {
@@ -1000,11 +1002,8 @@ fn cmd_night(args: NightArgs) -> ExitCode {
             (&args.truth, &alone.truth),
             (&args.trace, &mkgp.learner),
         ] {
-            if let Some(p) = path {
-                if let Err(e) = std::fs::write(p, text) {
-                    eprintln!("guide-sim night: cannot write {}: {e}", p.display());
-                    return ExitCode::FAILURE;
-                }
+            if path.as_ref().is_some_and(|p| !written(p, text)) {
+                return ExitCode::FAILURE;
             }
         }
     }
