@@ -32,6 +32,7 @@ use crate::models::Model;
 use crate::noise::SplitMix64;
 use crate::st4_sim::{self, Firmware, GuiderSettings, Setup, Sky};
 use crate::table::{self, Column};
+use mkgp_mount::model::additions::Additions;
 use mkgp_mount::mount::config::MountConfig;
 use rayon::prelude::*;
 use std::collections::BTreeMap;
@@ -190,13 +191,14 @@ impl Row {
     }
 }
 
-/// The two rows of `mount`: noise-free, then at its seeing.
-pub fn rows(mount: &Mount) -> [Row; 2] {
+/// The two rows of `mount`: noise-free, then at its seeing, with the
+/// model's and the firmware's `additions` (every column's).
+pub fn rows(mount: &Mount, additions: Additions) -> [Row; 2] {
     let (case, conditions, seeds) = (&mount.case, mount.conditions(), mount.seeds());
     let open_loop = closed_loop::open_loop_rms_in(case, seeds[0], &conditions);
     [0.0, mount.seeing_px].map(|noise_px| {
-        let model = |c| table::rms_in(case, noise_px, &seeds, &conditions, c);
-        let firmware = |fw| firmware_rms(mount, fw, noise_px);
+        let model = |c| table::rms_in(case, noise_px, &seeds, &conditions, c, additions);
+        let firmware = |fw| firmware_rms(mount, fw, noise_px, additions);
         let ((reactive, ppec), (mkgp, (guider_only, (fw_ppec, fw_mkgp)))) = rayon::join(
             || {
                 rayon::join(
@@ -237,14 +239,18 @@ pub fn rows(mount: &Mount) -> [Row; 2] {
 
 /// Mean pointing RMS of `firmware` on `mount` (one run noise-free, the
 /// mean over its seeds in seed order with noise).
-fn firmware_rms(mount: &Mount, firmware: Firmware, noise_px: f64) -> f64 {
+fn firmware_rms(mount: &Mount, firmware: Firmware, noise_px: f64, additions: Additions) -> f64 {
     let seeds = mount.seeds();
     let seeds = if noise_px > 0.0 {
         &seeds[..]
     } else {
         &seeds[..1]
     };
-    let (setup, config) = (mount.setup(), mount.config());
+    let setup = Setup {
+        additions,
+        ..mount.setup()
+    };
+    let config = mount.config();
     let rms: Vec<f64> = seeds
         .par_iter()
         .map(|&seed| st4_sim::run_on(&mount.case, firmware, noise_px, seed, setup, config).rms)
@@ -256,11 +262,15 @@ fn firmware_rms(mount: &Mount, firmware: Firmware, noise_px: f64) -> f64 {
 /// order on rayon's threads; `each` is given each mount's rows in order as
 /// soon as it and all before it are done (a long run shows them as it
 /// goes).
-pub fn run(mounts: &[Mount], each: impl FnMut(&Mount, &[Row; 2]) + Send) -> Vec<Row> {
+pub fn run(
+    mounts: &[Mount],
+    additions: Additions,
+    each: impl FnMut(&Mount, &[Row; 2]) + Send,
+) -> Vec<Row> {
     // The rows done out of order, the next mount in order, the rows so far.
     let state = Mutex::new((each, BTreeMap::new(), 0, Vec::new()));
     mounts.iter().enumerate().par_bridge().for_each(|(i, m)| {
-        let r = rows(m);
+        let r = rows(m, additions);
         let mut guard = state.lock().unwrap_or_else(|e| e.into_inner());
         let (each, pending, next, out) = &mut *guard;
         pending.insert(i, r);

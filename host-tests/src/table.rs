@@ -46,17 +46,18 @@ fn rms(case: &Case, sigma_px: f64, column: Column, additions: Additions) -> f64 
     closed_loop::rms_at(case, sigma_px, || make(column, additions))
 }
 
-/// Residual RMS of `column` on `case` in `conditions`, over `seeds`
-/// ([`closed_loop::rms_in`]).
+/// Residual RMS of `column` with `additions` on `case` in `conditions`,
+/// over `seeds` ([`closed_loop::rms_in`]).
 pub fn rms_in(
     case: &Case,
     sigma_px: f64,
     seeds: &[u64],
     conditions: &Conditions,
     column: Column,
+    additions: Additions,
 ) -> f64 {
     closed_loop::rms_in(case, sigma_px, seeds, conditions, || {
-        make(column, Additions::ALL)
+        make(column, additions)
     })
 }
 

@@ -379,7 +379,10 @@ fn each_subcommand_help_lists_its_options() {
                 "--without <NAME>",
             ],
         ),
-        ("population", &["--seed <S>", "--count <N>", "--csv"]),
+        (
+            "population",
+            &["--seed <S>", "--count <N>", "--csv", "--without <NAME>"],
+        ),
         ("ablate", &["--seed <S>", "--count <N>", "--only <NAME>"]),
     ] {
         let o = guide_sim(&[sub, "--help"]);

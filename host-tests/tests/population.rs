@@ -7,6 +7,7 @@
 use host_tests::population::ranges::*;
 use host_tests::population::summary::{self, Ratio};
 use host_tests::population::{self, Mount, StageKind, DEVELOPMENT_SEED};
+use mkgp_mount::model::additions::Additions;
 
 /// Mounts drawn for the range checks (drawing only: cheap).
 const DRAWN: usize = 2_000;
@@ -184,7 +185,7 @@ fn csv_rows_have_the_header_s_columns() {
 #[test]
 fn the_first_mounts_meet_the_goal() {
     let mounts = population::draw(DEVELOPMENT_SEED, RUN);
-    let rows = population::run(&mounts, |_, _| {});
+    let rows = population::run(&mounts, Additions::ALL, |_, _| {});
     assert_eq!(rows.len(), 2 * RUN);
     let mut misses = Vec::new();
     for (r, m) in rows.iter().zip(mounts.iter().flat_map(|m| [m, m])) {
@@ -225,7 +226,21 @@ fn the_first_mounts_meet_the_goal() {
         assert!(s.median <= s.p90 && s.p90 <= s.worst, "{l:?}");
     }
     // Deterministic: the same mount again gives the same rows.
-    assert_eq!(population::rows(&mounts[0]), [rows[0], rows[1]]);
+    assert_eq!(
+        population::rows(&mounts[0], Additions::ALL),
+        [rows[0], rows[1]]
+    );
+    // An addition switched off acts on the model in both loops, and on
+    // neither baseline: mount 1 finds its stage by the local-maximum rule.
+    let mut off = Additions::ALL;
+    off.local_maximum = false;
+    for (off, on) in population::rows(&mounts[0], off).iter().zip(&rows) {
+        assert_eq!(
+            (off.open_loop, off.reactive, off.guider_only),
+            (on.open_loop, on.reactive, on.guider_only)
+        );
+        assert!(off.mkgp != on.mkgp && off.fw_mkgp != on.fw_mkgp, "{off:?}");
+    }
     assert!(misses.is_empty(), "{misses:#?}");
 }
 

@@ -18,6 +18,7 @@
 //!                 [--speed X] [--no-st4-guider]
 //! guide-sim view (--port DEVICE | --pty PATH | --tcp HOST:PORT) [--listen ADDR:PORT]
 //! guide-sim population [--seed S] [--count N | --mount K...] [--csv]
+//!                     [--without NAME]...
 //! guide-sim ablate [--seed S] [--count N] [--only NAME]...
 //! ```
 //! `guide-sim <subcommand> --help` describes each; the arguments are
@@ -231,6 +232,10 @@ struct PopulationArgs {
     /// Print the rows as CSV (the summary goes to stderr)
     #[arg(long)]
     csv: bool,
+    /// Switch off this addition around the paper's model, in every column
+    /// of both loops (repeatable; `ablate --help`)
+    #[arg(long, value_name = "NAME", value_parser = addition_name)]
+    without: Vec<String>,
 }
 
 #[derive(Args)]
@@ -1179,6 +1184,7 @@ fn cmd_population(
         count,
         mounts,
         csv,
+        without,
     }: PopulationArgs,
 ) -> ExitCode {
     use population::summary;
@@ -1216,7 +1222,7 @@ fn cmd_population(
     // Each mount's rows as soon as they are in order: a long run can be
     // read (or cut short) as it goes.
     let mut done = 0;
-    let rows = population::run(&mounts, |m, rows| {
+    let rows = population::run(&mounts, additions_without(&without), |m, rows| {
         for r in rows {
             if csv {
                 println!("{}", population::csv_line(r, m));
