@@ -204,9 +204,11 @@ additions! {
     /// until an F-test picks each one clearly, up to half a worm period.
     /// Off: the first search places them.
     phase_retry: Restore,
-    /// The restore: at the first frame the restored data moves to meet the
-    /// measured gear error's level (the mount's reconstruction starts
-    /// again from 0 each night). Off: it stays at the saved level.
+    /// The restore: at the first measured frame the restored (or, after
+    /// a slew, re-placed) data moves to meet the measured gear error's
+    /// level (the mount's reconstruction starts again from 0 each night;
+    /// after a slew the guider centres the star anew). Off: it stays at
+    /// the saved level.
     level_match: Restore,
 }
 

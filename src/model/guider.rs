@@ -441,6 +441,8 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         let measured = measured.filter(|_| !settling);
         if self.frames == 0 {
             self.start_clock(time_s, measured);
+        } else if let Some(g) = measured {
+            self.match_placed_level(time_s, g);
         }
         let (gear, variance) = match measured {
             Some(g) => (g, measurement_variance(snr.to_f64())),
@@ -772,6 +774,23 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             gear_time = resumed.gear_time_s;
         }
         self.start_time = time_s - gear_time;
+    }
+
+    /// The first measured frame after placed data whose first frame had
+    /// no measurement: the placed data meets its level
+    /// ([`Restore::match_level`]).
+    fn match_placed_level(&mut self, time_s: f64, gear: f64) {
+        if !self.restore.level_pending() {
+            return;
+        }
+        let at = time_s - self.start_time - self.grid.origin().unwrap_or(0.0);
+        let fit = Fit {
+            gp: &mut self.gp,
+            kernel: &mut self.kernel,
+            measured_only: self.config.additions.measured_subset,
+        };
+        self.restore
+            .match_level(gear, at, &mut self.grid, &mut self.scratch, fit);
     }
 
     /// Gear time of the current frame: the midpoint of the interval since

@@ -125,6 +125,10 @@ pub(super) struct Restore<const N: usize> {
     adds: Additions,
     /// Restored data waiting for the phase search.
     phase_search: Option<PhaseSearch<N>>,
+    /// Placed data whose level waits for the first measured frame: after
+    /// a slew the first frames are often the guider's calibration, and
+    /// the star is centred anew.
+    level_pending: bool,
 }
 
 /// The guider's stages as a restore reads them: each one's tracker and
@@ -178,6 +182,7 @@ impl<const N: usize> Restore<N> {
             resume = None,
             adds = adds,
             phase_search = None,
+            level_pending = false,
         })
     }
 
@@ -185,6 +190,7 @@ impl<const N: usize> Restore<N> {
     pub(super) fn clear(&mut self) {
         self.resume = None;
         self.phase_search = None;
+        self.level_pending = false;
     }
 
     /// [`Guider::snapshot`](super::Guider::snapshot) of `grid`, `stages`
@@ -383,26 +389,47 @@ impl<const N: usize> Restore<N> {
         }
         let periods = stages.trackers.map(|t| t.period_s);
         *fit.kernel = Kernel::new(&periods, &self.fit_gates(stages.gates));
-        if let Some(level) = gear
-            .filter(|_| self.adds.level_match)
-            .zip(fit.mean_from_data(grid, scratch, at))
-            .map(|(g, m)| g - m)
-        {
-            if level.is_finite() {
-                grid.shift_gear(0..grid.len(), level);
-                if let Some(PhaseSearch {
-                    stages: Some((_, h)),
-                    ..
-                }) = &mut self.phase_search
-                {
-                    h.shift_level(level);
-                }
-            }
+        self.level_pending = self.adds.level_match;
+        if let Some(gear) = gear {
+            self.match_level(gear, at, grid, scratch, fit);
         }
         Some(Resumed {
             gear_time_s: at,
             placed: true,
         })
+    }
+
+    /// Whether the placed data's level waits for a measured frame.
+    pub(super) fn level_pending(&self) -> bool {
+        self.level_pending
+    }
+
+    /// A measured `gear` error at grid time `at`, the first since the
+    /// data was placed: the placed data moves to meet its level (once).
+    pub(super) fn match_level<S: Scalar>(
+        &mut self,
+        gear: f64,
+        at: f64,
+        grid: &mut Grid<S>,
+        scratch: &mut [S; FFT_LEN],
+        fit: Fit<'_, S, N>,
+    ) {
+        if !core::mem::take(&mut self.level_pending) {
+            return;
+        }
+        let Some(level) = fit.mean_from_data(grid, scratch, at).map(|m| gear - m) else {
+            return;
+        };
+        if level.is_finite() {
+            grid.shift_gear(0..grid.len(), level);
+            if let Some(PhaseSearch {
+                stages: Some((_, h)),
+                ..
+            }) = &mut self.phase_search
+            {
+                h.shift_level(level);
+            }
+        }
     }
 
     /// Whether the model must wait for the phase search (the restored data
@@ -1153,6 +1180,25 @@ mod tests {
                 assert_eq!(moved, 0.0);
             }
         }
+    }
+
+    #[test]
+    fn the_level_waits_for_the_first_measured_frame() {
+        // The first frames after a slew are the guider's calibration (no
+        // measurement); the star, centred anew, reads 5 px above. The
+        // restored cells meet the first measured frame, not a frame
+        // without one.
+        let g = learned();
+        let (mut r, (saved, _), _) = restored_into(&g, *g.config(), known(8000.0));
+        r.observe(0.0, None, 0.0, 10.0, 2.0);
+        r.observe(2.0, None, 0.0, 10.0, 2.0);
+        assert_eq!(r.grid.cell(0).0 - saved, 0.0);
+        r.observe(4.0, Some(gear(8004.0) + 5.0), 0.0, 10.0, 2.0);
+        let moved = r.grid.cell(0).0 - saved;
+        assert!((moved - 5.0).abs() < 1.0, "{moved}");
+        // Once: a later frame's level is the model's to follow.
+        r.observe(6.0, Some(gear(8006.0) + 9.0), 0.0, 10.0, 2.0);
+        assert_eq!(r.grid.cell(0).0 - saved, moved);
     }
 
     #[test]
