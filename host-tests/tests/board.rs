@@ -457,7 +457,7 @@ fn statuses(board: &Board) -> Vec<Status> {
 fn next_status(board: &mut Board, after_s: f64) -> Status {
     let line = board.wait_for(
         &format!("status after {after_s} s"),
-        Duration::from_secs(180),
+        Duration::from_secs(900),
         |l| l.at_s > after_s && status(l).is_some(),
     );
     status(&line).unwrap()
