@@ -210,6 +210,12 @@ additions! {
     /// after a slew the guider centres the star anew). Off: it stays at
     /// the saved level.
     level_match: Restore,
+    /// A jump: the gap the placement after a slew leaves (the gears
+    /// turned through it at the slew's rate, unobserved) is marked
+    /// (`Grid::set_dark`), and the stages' envelopes skip it (they count
+    /// observed time, `Kernel::projection_observed`). Off: the gap ages
+    /// the stages as time observed does.
+    observed_envelope: Firmware,
 }
 
 impl Additions {
@@ -263,6 +269,7 @@ mod tests {
             "calibration_watch",
             "grid_lag",
             "configured_worm",
+            "observed_envelope",
         ];
         let restore = [
             "one_piece",

@@ -56,7 +56,7 @@ pub enum Push {
 }
 
 /// Ring of completed cells plus the running state of the open cell.
-/// RAM: 2 x 2048 scalars (16 KiB in `f32`) plus 112 bytes.
+/// RAM: 2 x 2048 scalars (16 KiB in `f32`) plus 136 bytes.
 pub struct Grid<S> {
     gear: [S; GRID_CELLS],
     variance: [S; GRID_CELLS],
@@ -87,6 +87,19 @@ pub struct Grid<S> {
     /// sits before the cell's centre, s, and the cells it has seen.
     lag_s: f64,
     lag_cells: u32,
+    /// The newest gap in which the gears were not observed (`set_dark`).
+    dark: Option<Dark>,
+}
+
+/// Cells a placement left without observation: the gears turned through
+/// them (a slew, the mount off) while nobody watched. Absolute cell
+/// indices (counted from the origin), so that they keep their meaning as
+/// cells are emitted and dropped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Dark {
+    /// The first cell after the gap.
+    end: u64,
+    cells: u64,
 }
 
 impl<S: Scalar> Grid<S> {
@@ -114,6 +127,7 @@ impl<S: Scalar> Grid<S> {
             time_sum = 0.0,
             lag_s = 0.0,
             lag_cells = 0,
+            dark = None,
         })
     }
 
@@ -251,6 +265,34 @@ impl<S: Scalar> Grid<S> {
         }
     }
 
+    /// Mark the `cells` cells before held cell `end` (0 = oldest; it may
+    /// be the open cell, or one not emitted yet) as not observed: the gears
+    /// turned through them unwatched. Replaces an older mark (whose cells
+    /// then count as observed again).
+    pub fn set_dark(&mut self, end: usize, cells: usize) {
+        self.dark = (cells > 0).then(|| Dark {
+            end: self.absolute(end),
+            cells: cells as u64,
+        });
+    }
+
+    /// The dark gap as held indices: the first held cell after it (at most
+    /// `len`: the open cell, or one still to come) and its length in
+    /// cells. None without one, or once every held cell is after it.
+    // Out of line: three callers each frame, a few instructions each.
+    #[inline(never)]
+    pub fn dark(&self) -> Option<(usize, usize)> {
+        let dark = self.dark?;
+        let oldest = self.absolute(0);
+        let end = dark.end.checked_sub(oldest).filter(|&e| e > 0)?;
+        Some((end as usize, dark.cells as usize))
+    }
+
+    /// Absolute index of held cell `i` (0 = oldest).
+    fn absolute(&self, i: usize) -> u64 {
+        self.emitted - self.len as u64 + i as u64
+    }
+
     /// Drop the `count` oldest cells; the others keep their times.
     pub fn drop_oldest(&mut self, count: usize) {
         let count = count.min(self.len);
@@ -269,6 +311,12 @@ impl<S: Scalar> Grid<S> {
         self.len -= drop;
         let at = at - drop;
         let count = count.min(GRID_CELLS - self.len);
+        let at_absolute = self.absolute(at);
+        if let Some(dark) = &mut self.dark {
+            if dark.end >= at_absolute {
+                dark.end += count as u64;
+            }
+        }
         let gear_at = |g: &Self, i: usize| g.gear[(g.head + i) % GRID_CELLS].to_f64();
         let after = if at < self.len {
             gear_at(self, at)
@@ -459,6 +507,45 @@ mod tests {
             g.cell_time(g.len() - 1) + g.origin().unwrap(),
             newest_time + 5.0
         );
+    }
+
+    /// A dark mark stays on its cells as cells come and go, moves with
+    /// them when a gap is inserted before it, and is gone once every held
+    /// cell is after it, or with the cells.
+    #[test]
+    fn the_dark_gap_stays_on_its_cells() {
+        let mut g: Grid<f64> = Grid::new();
+        let t = ramp(&mut g, 0.0, 1000.0, 2.0);
+        assert_eq!(g.dark(), None);
+        let len = g.len();
+        // The gap still to come: it ends at the open cell.
+        g.set_dark(len + 40, 40);
+        assert_eq!(g.dark(), Some((len + 40, 40)));
+        g.set_dark(len, 0);
+        assert_eq!(g.dark(), None);
+        g.set_dark(150, 40);
+        g.drop_oldest(10);
+        assert_eq!(g.dark(), Some((140, 40)));
+        // New cells leave it where it is; a gap inserted after it too.
+        let t = ramp(&mut g, t, 1100.0, 2.0);
+        assert_eq!(g.dark(), Some((140, 40)));
+        g.insert_gap(141, 5, 1e4);
+        assert_eq!(g.dark(), Some((140, 40)));
+        // One before it (or at its end) moves it with its cells.
+        g.insert_gap(140, 5, 1e4);
+        assert_eq!(g.dark(), Some((145, 40)));
+        g.insert_gap(3, 5, 1e4);
+        assert_eq!(g.dark(), Some((150, 40)));
+        g.drop_oldest(149);
+        assert_eq!(g.dark(), Some((1, 40)));
+        g.drop_oldest(1);
+        assert_eq!(g.dark(), None);
+        g.set_dark(100, 40);
+        ramp(&mut g, t, 20_000.0, 2.0);
+        assert_eq!(g.dark(), None);
+        g.set_dark(100, 40);
+        g.restore([(0.0, 1.0); 200].into_iter(), 1e4);
+        assert_eq!(g.dark(), None);
     }
 
     /// A gap moves the grid's time axis under the open cell: the anchor's

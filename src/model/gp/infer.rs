@@ -15,6 +15,7 @@ use core::mem::MaybeUninit;
 
 use crate::model::gp::grid::{Grid, CELL_S};
 use crate::model::gp::kernel::Kernel;
+use crate::model::gp::lag_table::Split;
 use crate::model::gp::subset::Subset;
 use crate::model::gp::trend::Trend;
 use crate::model::gp::{gram, lag_table, InferError, SUBSET, TRIANGLE};
@@ -65,7 +66,7 @@ impl<S: Scalar> Gp<S> {
 
     /// Fit the model around `centre` (seconds, relative to the grid origin).
     /// `scratch` (at least 2 x `GRID_CELLS` long, the guider's spectrum
-    /// buffer) holds the selection's covariances and then the lag table.
+    /// buffer) holds the selection's covariances and then the lag tables.
     /// A shorter `scratch` gives [`InferError::Degenerate`].
     /// `measured_only`: the subset leaves out cells without a measurement
     /// while there are measured ones (`Subset::select`).
@@ -89,10 +90,12 @@ impl<S: Scalar> Gp<S> {
         }
         let cells = self.subset.cells();
         let n = cells.len();
-        let Some(table) = lag_table::build(scratch, cells, kernel) else {
+        let split = grid.dark().map(|(end, cells)| Split { end, cells });
+        let Some(tables) = lag_table::build(scratch, cells, kernel, split) else {
             return Err(InferError::Degenerate);
         };
-        gram::fill(&mut self.chol, grid, cells, table);
+        let before = split.map_or(0, |s| cells.partition_point(|&c| (c as usize) < s.end));
+        gram::fill(&mut self.chol, grid, cells, before, &tables);
         self.chol.factor().map_err(InferError::Factor)?;
         let weights = self.weights.get_mut(..n).ok_or(InferError::Degenerate)?;
         self.slope = self.trend.solve(&self.chol, grid, cells, centre, weights)?;
@@ -118,14 +121,33 @@ impl<S: Scalar> Gp<S> {
         let d0 = S::from_f64(x0 - t_newest);
         let d1 = S::from_f64(x1 - t_newest);
         let cell = S::from_f64(CELL_S);
+        // x0 and x1 lie after a dark gap: the cells before it are that
+        // much nearer in observed time.
+        let (dark_end, unobserved) = grid.dark().map_or((0, S::ZERO), |(end, cells)| {
+            (end, S::from_usize(cells) * cell)
+        });
         let mut change = S::ZERO;
         for (&c, &w) in self.subset.cells().iter().zip(&self.weights) {
             let back = S::from_usize(newest - c as usize) * cell;
-            let dk = kernel.projection(d1 + back) - kernel.projection(d0 + back);
+            let (a, b) = (d0 + back, d1 + back);
+            let skip = if (c as usize) < dark_end {
+                unobserved
+            } else {
+                S::ZERO
+            };
+            let dk = projection_at(kernel, b, skip) - projection_at(kernel, a, skip);
             change += dk * w;
         }
         change + self.slope * S::from_f64(x1 - x0)
     }
+}
+
+/// The projection kernel at lag `d`, `skip` of it not observed. Out of
+/// line: one copy of the kernel for both ends of a prediction (a call per
+/// member and end costs little beside the kernel).
+#[inline(never)]
+fn projection_at<S: Scalar, const N: usize>(kernel: &Kernel<S, N>, d: S, skip: S) -> S {
+    kernel.projection_observed(d, d - skip)
 }
 
 impl<S: Scalar> Default for Gp<S> {
@@ -149,9 +171,9 @@ mod tests {
         }
         let k: Kernel<f64, 1> = Kernel::new(&[288.0], &[1.0]);
         let mut gp = Gp::<f64>::new();
-        let mut scratch = [0.0; GRID_CELLS];
+        let mut scratch = [0.0; 2 * GRID_CELLS];
         assert_eq!(
-            gp.infer(&g, &k, 3001.0, &mut scratch[..100], true),
+            gp.infer(&g, &k, 3001.0, &mut scratch[..GRID_CELLS], true),
             Err(InferError::Degenerate)
         );
         assert_eq!(gp.infer(&g, &k, 3001.0, &mut scratch, true), Ok(()));

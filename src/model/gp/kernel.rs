@@ -99,12 +99,23 @@ impl<S: Scalar, const N: usize> Kernel<S, N> {
     /// Projection kernel: long SE + every stage.
     #[inline(always)]
     pub fn projection(&self, d: S) -> S {
+        self.projection_observed(d, d)
+    }
+
+    /// [`projection`](Self::projection) between two times `d` apart in
+    /// gear time and `observed` apart in observed time (gear time less the
+    /// gaps in which the gears were not observed: `Grid::dark`). The
+    /// periodic terms follow the gears; the envelopes count only the time
+    /// the stages were seen, so a slew's gap forgets nothing.
+    #[inline(always)]
+    pub fn projection_observed(&self, d: S, observed: S) -> S {
         let d2 = d * d;
+        let o2 = observed * observed;
         let mut k = self.long_variance * (self.long_coeff * d2).exp_nonpositive();
         for st in &self.stages {
             if st.variance > S::ZERO {
                 let periodic = d.sin2_scaled(st.phase_factor, st.sin2_coeff);
-                k += st.variance * (periodic + st.envelope_coeff * d2).exp_nonpositive();
+                k += st.variance * (periodic + st.envelope_coeff * o2).exp_nonpositive();
             }
         }
         k
@@ -119,7 +130,14 @@ impl<S: Scalar, const N: usize> Kernel<S, N> {
     /// the bound at [`SHORT_CUTOFF`]). NaN lags still propagate.
     #[inline(always)]
     pub fn full(&self, d: S) -> S {
-        let k = self.projection(d);
+        self.full_observed(d, d)
+    }
+
+    /// [`full`](Self::full) with the envelopes in observed time, as
+    /// [`projection_observed`](Self::projection_observed).
+    #[inline(always)]
+    pub fn full_observed(&self, d: S, observed: S) -> S {
+        let k = self.projection_observed(d, observed);
         let short = self.short_coeff * d * d;
         if short < S::from_f64(SHORT_CUTOFF) {
             k

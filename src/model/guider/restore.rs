@@ -8,7 +8,8 @@
 //! the phase known, the saved cells are placed shortly before the first
 //! new frame where the stages' phases come out right (exactly, if the
 //! offset puts the frame there) or as close as they can, the gap left as
-//! cells without data (as a cloud leaves them); and their level is moved
+//! cells without data (as a cloud leaves them; after a slew, marked as
+//! time nobody observed, `observed_envelope`); and their level is moved
 //! to meet the first observation, since the gear error the mount
 //! reconstructs starts again from 0 each night. With the phase unknown,
 //! the new data is matched against the saved cells once half a worm period
@@ -80,6 +81,11 @@ struct Resume {
     /// phase unknown, as if the offset were 0).
     grid_zero_s: f64,
     place: Place,
+    /// Placed after a slew (`Guider::jumped`): the gap it leaves is gear
+    /// time nobody observed, the gears turned through it at the slew's
+    /// rate. (After a power cycle, or a replay's pause, the gap held the
+    /// clock's time too.)
+    slewed: bool,
 }
 
 /// How the first frame places the restored grid.
@@ -276,7 +282,11 @@ impl<const N: usize> Restore<N> {
                 .cells()
                 .map(|(g, v)| (S::from_f64(g as f64), S::from_f64(v as f64)));
             grid.restore(cells, DARK_VARIANCE);
-            self.resume = Some(Resume { grid_zero_s, place });
+            self.resume = Some(Resume {
+                grid_zero_s,
+                place,
+                slewed: false,
+            });
         }
     }
 
@@ -311,10 +321,17 @@ impl<const N: usize> Restore<N> {
         }
         let (gears, variances) = scratch.split_at(GRID_CELLS);
         let cells = gears.iter().zip(variances).take(len).map(|(&g, &v)| (g, v));
+        // The cells keep their held indices, and an earlier dark gap
+        // with them.
+        let dark = grid.dark();
         grid.restore(cells, DARK_VARIANCE);
+        if let Some((end, cells)) = dark {
+            grid.set_dark(end, cells);
+        }
         self.resume = Some(Resume {
             grid_zero_s: zero,
             place: Place::AllStages,
+            slewed: true,
         });
         true
     }
@@ -386,6 +403,11 @@ impl<const N: usize> Restore<N> {
                 blocks: false,
                 stages: apart.map(|h| (saved, h)),
             });
+        }
+        let unobserved = libm::floor((at - end) / CELL_S);
+        if resume.slewed && self.adds.observed_envelope && unobserved >= 1.0 {
+            let cells = unobserved as usize;
+            grid.set_dark(grid.len() + cells, cells);
         }
         let periods = stages.trackers.map(|t| t.period_s);
         *fit.kernel = Kernel::new(&periods, &self.fit_gates(stages.gates));
@@ -992,6 +1014,39 @@ mod tests {
             // learning again from nothing.
             assert!(after < cold, "jump {jump}: {after} vs {cold}");
         }
+    }
+
+    /// A slew turns the gears through a stretch nobody observed: the
+    /// placement marks the gap it leaves, and the 155 s stage's envelope
+    /// (20 periods, 3,100 s) skips it. Off, the gap ages the stage as if
+    /// it had been watched. Most of what the slew costs the first five
+    /// minutes is that aging; the rest is the long SE's (700 s, in gear
+    /// time: a new target drifts its own way).
+    #[test]
+    fn a_slews_gap_does_not_age_the_stages() {
+        let g = learned();
+        let first_5_min = |config| {
+            let (mut j, _, _) = restored_into(&g, config, known(0.0));
+            run(&mut j, 0.0, 0.0, 8000.0, 8600.0, 8000.0);
+            let held = j.grid.len();
+            j.jumped();
+            let from = 8600.0 + 2_700.0;
+            let rms = run(&mut j, 0.0, 0.0, from, from + 300.0, from);
+            (rms, held, j.grid.dark())
+        };
+        let (on, held, dark) = first_5_min(*g.config());
+        let (off, _, no_dark) = first_5_min(without(&g, "observed_envelope"));
+        let settled = {
+            let (mut j, _, _) = restored_into(&g, *g.config(), known(0.0));
+            run(&mut j, 0.0, 0.0, 8000.0, 8900.0, 8600.0)
+        };
+        std::println!("first 5 min after the slew: {on} on, {off} off; {settled} without it");
+        // The gap: the cells from the held data's end to the first frame
+        // (the placement keeps a slew this short whole).
+        assert_eq!(dark, Some((held + 540, 540)));
+        assert_eq!(no_dark, None);
+        // Most of the slew's cost goes.
+        assert!(on - settled < 0.5 * (off - settled), "{on} {off} {settled}");
     }
 
     /// Restored at a known phase, the model predicts from the first frame
