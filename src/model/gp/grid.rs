@@ -92,7 +92,7 @@ pub struct Grid<S> {
 }
 
 /// Cells a placement left without observation: the gears turned through
-/// them (a slew, the mount off) while nobody watched. Absolute cell
+/// them (a slew) while nobody watched. Absolute cell
 /// indices (counted from the origin), so that they keep their meaning as
 /// cells are emitted and dropped.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -131,8 +131,15 @@ impl<S: Scalar> Grid<S> {
         })
     }
 
+    /// Empty, as new, in place: `*self = Self::new()` let LLVM build the
+    /// 16 KiB grid in a temporary on the stack first (a 16,640 B frame in
+    /// `push`, which overflowed the L475's 20 KiB stack at boot).
     pub fn clear(&mut self) {
-        *self = Self::new();
+        let slot = self as *mut Self;
+        // SAFETY: `slot` is this grid, valid for writes and borrowed by
+        // nothing else; every field is plain data (nothing to drop), and
+        // `init` writes each one before the grid is used again.
+        Self::init(unsafe { &mut *slot.cast::<MaybeUninit<Self>>() });
     }
 
     /// Number of completed cells held.
