@@ -27,7 +27,8 @@
 #                    for the stack), or if its panic call sites (counted in
 #                    the disassembly) exceed PANIC_SITES_MAX, or if the
 #                    L475's static RAM leaves less than 16 KiB of its
-#                    96 KiB for the stack.
+#                    96 KiB for the stack, or if any function's stack
+#                    frame exceeds STACK_FRAME_MAX.
 #   5. bench:        cd host-tests && cargo run --release --bin guide-sim --
 #                    bench --csv   (prints the figures; fails if N = 2 or 3 exceeds
 #                    1,000,000 instructions per frame (median) or 64 KiB of
@@ -71,6 +72,11 @@ L475_RAM_MAX=$((80 * 1024))
 # 29) two copies more of embassy-sync's pipe borrow inlined into a task: 307;
 # the worm index's own interrupt handler instead of embassy's EXTI future: 303.
 PANIC_SITES_MAX=303
+# The largest stack frame of any one function: 4,640 B today (the model's
+# frame). A large value built in a stack temporary (the grid's 16 KiB,
+# once) overflows the L475's 20 KiB stack at boot, which only the board
+# step would otherwise show.
+STACK_FRAME_MAX=8192
 
 kib() { printf '%d.%d KiB' $(($1 / 1024)) $((($1 % 1024) * 10 / 1024)); }
 step() { printf '\n==> %s\n' "$*"; }
@@ -228,6 +234,26 @@ panic_sites() {
         }'
 }
 
+# The largest stack frames in an ELF: the immediate of each `sub sp`
+# (bytes) and its function, largest first (five of them).
+stack_frames() {
+    "$LLVM_OBJDUMP" -d --demangle --no-show-raw-insn "$1" | awk '
+        function value(s,    i, c, v) {
+            if (s !~ /^0x/) return s + 0
+            v = 0
+            for (i = 3; i <= length(s); i++) {
+                c = index("0123456789abcdef", substr(s, i, 1)) - 1
+                v = v * 16 + c
+            }
+            return v
+        }
+        /^[0-9a-f]+ <.*>:$/ { fn = $0; sub(/^[0-9a-f]+ </, "", fn); sub(/>:$/, "", fn); next }
+        /\tsub(\.w|w)?\t+sp, (sp, )?#/ {
+            imm = $0; sub(/.*#/, "", imm); sub(/[^0-9a-fx].*/, "", imm)
+            printf "%d %s\n", value(imm), fn
+        }' | sort -rn | awk 'NR <= 5'
+}
+
 step "firmware builds"
 OUT="target/$TARGET/release"
 sizes=()
@@ -271,6 +297,15 @@ echo "$sites"
 total=$(tail -n1 <<<"$sites" | awk '{print $2}')
 [ "$total" -le "$PANIC_SITES_MAX" ] ||
     die "$total panic call sites, more than $PANIC_SITES_MAX (BY_FUNCTION=1 lists where)"
+
+step "largest stack frames in the release ELFs (at most $STACK_FRAME_MAX B each)"
+for chip in "${CHIPS[@]}"; do
+    frames=$(stack_frames "$OUT/mkgp-mount-$chip")
+    largest=$(head -n1 <<<"$frames")
+    echo "$chip: $largest"
+    [ "${largest%% *}" -le "$STACK_FRAME_MAX" ] ||
+        die "$chip: a stack frame of more than $STACK_FRAME_MAX B:"$'\n'"$frames"
+done
 
 # --- 5. bench -----------------------------------------------------------------
 # The figures, and the Cortex-M4 goals asserted by the bench binary: host
