@@ -295,6 +295,21 @@ impl<S: Scalar> Grid<S> {
         Some((end as usize, dark.cells as usize))
     }
 
+    /// How much nearer in observed time each held cell is to the data
+    /// after the dark gap: the cells before it by the gap's length.
+    pub fn unobserved(&self) -> Unobserved<S> {
+        self.dark().map_or(
+            Unobserved {
+                end: 0,
+                seconds: S::ZERO,
+            },
+            |(end, cells)| Unobserved {
+                end,
+                seconds: S::from_usize(cells) * S::from_f64(CELL_S),
+            },
+        )
+    }
+
     /// Absolute index of held cell `i` (0 = oldest).
     fn absolute(&self, i: usize) -> u64 {
         self.emitted - self.len as u64 + i as u64
@@ -383,6 +398,26 @@ impl<S: Scalar> Grid<S> {
             self.head = (self.head + 1) % GRID_CELLS;
         }
         self.emitted += 1;
+    }
+}
+
+/// The seconds of gear time a held cell's lags to the data after the
+/// dark gap hold that nobody watched (`Grid::unobserved`).
+#[derive(Clone, Copy, Debug)]
+pub struct Unobserved<S> {
+    end: usize,
+    seconds: S,
+}
+
+impl<S: Scalar> Unobserved<S> {
+    /// The unwatched seconds between held cell `i` and the data after
+    /// the gap: the gap's length before it, none after.
+    pub fn before(&self, i: usize) -> S {
+        if i < self.end {
+            self.seconds
+        } else {
+            S::ZERO
+        }
     }
 }
 

@@ -123,18 +123,12 @@ impl<S: Scalar> Gp<S> {
         let cell = S::from_f64(CELL_S);
         // x0 and x1 lie after a dark gap: the cells before it are that
         // much nearer in observed time.
-        let (dark_end, unobserved) = grid.dark().map_or((0, S::ZERO), |(end, cells)| {
-            (end, S::from_usize(cells) * cell)
-        });
+        let unobserved = grid.unobserved();
         let mut change = S::ZERO;
         for (&c, &w) in self.subset.cells().iter().zip(&self.weights) {
             let back = S::from_usize(newest - c as usize) * cell;
             let (a, b) = (d0 + back, d1 + back);
-            let skip = if (c as usize) < dark_end {
-                unobserved
-            } else {
-                S::ZERO
-            };
+            let skip = unobserved.before(c as usize);
             let dk = projection_at(kernel, b, skip) - projection_at(kernel, a, skip);
             change += dk * w;
         }

@@ -84,17 +84,14 @@ impl Subset {
         let unmeasured = S::from_f64(UNMEASURED_VARIANCE);
         // The centre lies after a dark gap: the cells before it are that
         // much nearer in observed time.
-        let (dark_end, unobserved) = grid.dark().map_or((0, S::ZERO), |(end, cells)| {
-            (end, S::from_usize(cells) * step)
-        });
+        let unobserved = grid.unobserved();
         let mut t_j = S::from_f64(grid.cell_time(0));
         for (j, c) in cov.iter_mut().enumerate() {
             *c = if measured_only && grid.cell(j).1 >= unmeasured {
                 S::from_f64(f64::NAN)
             } else {
                 let d = centre_s - t_j;
-                let skip = if j < dark_end { unobserved } else { S::ZERO };
-                kernel.full_observed(d, d - skip)
+                kernel.full_observed(d, d - unobserved.before(j))
             };
             t_j += step;
         }
