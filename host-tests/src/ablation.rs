@@ -30,7 +30,7 @@
 //! them worse by more than its spread.
 
 use crate::cases::Case;
-use crate::closed_loop::{self, Conditions, NOISY_SEEDS};
+use crate::closed_loop::{Conditions, NOISY_SEEDS};
 use crate::data::{self, Error};
 use crate::models::Model;
 use crate::nights::{self, Night2Start};
@@ -117,11 +117,18 @@ impl<'a> Cell<'a> {
     fn rms(&self, lp: Acts, mkgp: Option<Additions>) -> f64 {
         match lp {
             Acts::Model => {
-                let make = || match mkgp {
-                    Some(a) => table::make(Column::Model(MODEL), a),
-                    None => table::make(Column::Reactive, Additions::ALL),
+                let (column, additions) = match mkgp {
+                    Some(a) => (Column::Model(MODEL), a),
+                    None => (Column::Reactive, Additions::ALL),
                 };
-                closed_loop::rms_in(self.case, self.noise, &self.seeds, &self.conditions, make)
+                table::rms_in(
+                    self.case,
+                    self.noise,
+                    &self.seeds,
+                    &self.conditions,
+                    column,
+                    additions,
+                )
             }
             Acts::Firmware => {
                 let (firmware, additions) = match mkgp {

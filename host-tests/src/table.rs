@@ -33,7 +33,7 @@ pub enum Column {
 }
 
 /// A fresh algorithm for `column`, a model with its `additions` as given.
-pub fn make(column: Column, additions: Additions) -> Box<dyn GuideAlgorithm> {
+fn make(column: Column, additions: Additions) -> Box<dyn GuideAlgorithm> {
     match column {
         Column::Reactive => Box::new(Hysteresis::paper()),
         Column::Model(m) => models::carrying(m, None, None, Carry::default(), additions),
