@@ -89,6 +89,11 @@ additions! {
     /// reached through `ControlLoop::start_with`). Off: learned as guide
     /// frames.
     calibration_watch: Firmware,
+    /// The learner: a calibration's first steps, taken for guide pulses
+    /// until it is recognised, are taken back out of the earned share
+    /// (`mount::guiding::earned_share`). Off: two of them in a row bring
+    /// full pulses, and the share is earned again after each calibration.
+    calibration_share: Firmware,
     /// The model: an inference's subset leaves out the cells without a
     /// measurement (a re-pointing's gap, clouds, a calibration), which the
     /// short kernels rank high near the frame though they carry nothing
@@ -267,6 +272,7 @@ mod tests {
             "feed_forward_horizon",
             "feed_forward_weight",
             "calibration_watch",
+            "calibration_share",
             "grid_lag",
             "configured_worm",
             "observed_envelope",

@@ -424,9 +424,12 @@ impl<const N: usize> Learner<N> {
         // A guide frame's pulse (0 when the guider sent none); the others
         // (dithers, settling, silence) are carried out in full.
         let pulse = sane.filter(|_| !settling).map(|_| frame.pulse_arcsec);
+        if frame.kind == FrameKind::Calibration && adds.calibration_share {
+            self.share.calibrating();
+        }
         let earned = self
             .share
-            .frame(pulse, self.trusted() || !adds.trusted_gate);
+            .frame(pulse, d as f32, self.trusted() || !adds.trusted_gate);
         let pulse_share = if adds.earned_share {
             earned
         } else {
@@ -612,6 +615,37 @@ mod tests {
             let ff = neither.learn(measured(k, 0.0, if k % 2 == 0 { 0.3 } else { -0.3 }));
             assert_eq!(ff.pulse_share, PulseShare::FULL, "frame {k}");
         }
+    }
+
+    #[test]
+    fn without_the_calibration_share_a_calibration_brings_full_pulses() {
+        let share_after_calibration = |calibration_share: bool| {
+            let m = MountConfig::default().validate().unwrap();
+            let mut config = Learner::<1>::default_config(&m);
+            config.additions.trusted_gate = false;
+            config.additions.calibration_share = calibration_share;
+            let mut l = std::boxed::Box::new(Learner::<1>::with_config(&m, config));
+            alternating(&mut l, 300, false);
+            let earned = l.pulse_share();
+            // Two steps beyond the recent pulses (4 RMS) but within the
+            // bump's bound, then the frames of the recognised calibration.
+            for k in 300..302 {
+                l.learn(measured(k, 0.0, 2.0));
+            }
+            for k in 302..310 {
+                l.learn(Frame {
+                    kind: FrameKind::Calibration,
+                    ..measured(k, 0.0, 2.0)
+                });
+            }
+            l.learn(measured(310, 0.0, -0.3));
+            (earned, l.pulse_share())
+        };
+        let (earned, on) = share_after_calibration(true);
+        assert!(earned < 0.5 && (on - earned).abs() < 0.02, "{earned} {on}");
+        // Off: full pulses, less what the one plain pulse after earned.
+        let (_, off) = share_after_calibration(false);
+        assert!(off > 0.98, "{off}");
     }
 
     #[test]

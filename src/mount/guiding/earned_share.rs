@@ -31,6 +31,14 @@
 //! unstable"). Such a swing makes pulses two frames apart anti-correlated;
 //! [`EarnedShare::swing`] measures that for `super::pulse_weight`.
 //!
+//! A guider's calibration is recognised from its third equal step
+//! (`super::calibration`); its first two look like guide pulses beyond the
+//! recent ones, twice the same way. Once it is recognised they are taken
+//! back out ([`EarnedShare::calibrating`]): guiding after it goes on with
+//! the share earned before, unless its frames come further apart
+//! ([`CARRY_INTERVAL`]), where more of the error falls to each pulse and
+//! the share is earned again.
+//!
 //! Across a power cycle: the share and the statistics behind it are saved
 //! with the model ([`SavedShare`], in the learner's record), so a night
 //! restored with a trusted model does not spend its first minutes earning
@@ -55,6 +63,10 @@ const BACK_PER_FRAME: f32 = 0.05;
 /// A pulse beyond this many times the RMS of the recent pulses is no
 /// reaction to noise.
 const OUTLIER_RMS: f32 = 4.0;
+/// The share earned before a calibration holds after it while the guide
+/// frames come at most this many times as far apart as before: a loop
+/// whose frames come further apart leaves more of the error to each pulse.
+const CARRY_INTERVAL: f32 = 1.5;
 /// Bounds of the saved statistics (arcsec^2): far beyond any pulse a
 /// guider sends, inside what the running means take in `f32`.
 const MAX_SAVED_SQUARE: f32 = 1e6;
@@ -64,22 +76,49 @@ const MAX_SAVED_SQUARE: f32 = 1e6;
 pub struct EarnedShare {
     /// The configured least share; 1: every pulse in full.
     least: f32,
-    fraction: f32,
-    /// Running means of the pulse squared and of the products of pulses
-    /// one and two frames apart, arcsec^2.
-    square: f32,
-    lagged: f32,
-    lagged_two: f32,
+    stats: Statistics,
+    /// The statistics before the first of the pulses beyond the bound
+    /// since the last plain one: a calibration's first steps look like
+    /// that until it is recognised ([`EarnedShare::calibrating`]).
+    before_run: Option<Statistics>,
+    /// A calibration was recognised: the first guide frame after it
+    /// decides whether the share earned before it holds.
+    after_calibration: bool,
     /// The pulses of the previous two frames, while those were guide
     /// frames.
     previous: Option<f32>,
     before_previous: Option<f32>,
     /// The last pulse beyond its bound, while no pulse within it followed.
     last_beyond: Option<f32>,
-    scored: u32,
     /// A share restored with the model, returned to while the pulses are
     /// anti-correlated.
     restored: Option<f32>,
+}
+
+/// The share and the pulse statistics it is earned from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Statistics {
+    fraction: f32,
+    /// Running means of the pulse squared and of the products of pulses
+    /// one and two frames apart, arcsec^2.
+    square: f32,
+    lagged: f32,
+    lagged_two: f32,
+    /// Running mean of the intervals between them, s.
+    interval_s: f32,
+    /// Pulses taken in, up to the window.
+    scored: u32,
+}
+
+impl Statistics {
+    const NONE: Statistics = Statistics {
+        fraction: 1.0,
+        square: 0.0,
+        lagged: 0.0,
+        lagged_two: 0.0,
+        interval_s: 0.0,
+        scored: 0,
+    };
 }
 
 /// The earned share and the pulse weight as saved with the model: [`SAVED_LEN`]
@@ -165,14 +204,12 @@ impl EarnedShare {
     pub const fn new(least: f32) -> Self {
         EarnedShare {
             least,
-            fraction: 1.0,
-            square: 0.0,
-            lagged: 0.0,
-            lagged_two: 0.0,
+            stats: Statistics::NONE,
+            before_run: None,
+            after_calibration: false,
             previous: None,
             before_previous: None,
             last_beyond: None,
-            scored: 0,
             restored: None,
         }
     }
@@ -190,9 +227,9 @@ impl EarnedShare {
             };
         }
         SavedShare {
-            fraction: self.fraction,
-            square: self.square,
-            lagged: self.lagged,
+            fraction: self.stats.fraction,
+            square: self.stats.square,
+            lagged: self.stats.lagged,
             weight: 1.0,
         }
     }
@@ -208,10 +245,10 @@ impl EarnedShare {
         if !(s.square > 0.0) {
             return;
         }
-        self.square = s.square;
-        self.lagged = s.lagged;
-        self.scored = WINDOW_FRAMES;
-        self.fraction = s.fraction;
+        self.stats.square = s.square;
+        self.stats.lagged = s.lagged;
+        self.stats.scored = WINDOW_FRAMES;
+        self.stats.fraction = s.fraction;
         self.restored = (s.fraction < 1.0).then_some(s.fraction);
     }
 
@@ -222,24 +259,37 @@ impl EarnedShare {
 
     /// One frame: `pulse` the correction its RA pulse asked for (arcsec, 0
     /// for a frame the guider sent none), `None` for a frame that is no
-    /// plain guide frame; `trusted`: the model's feed-forward is in full
-    /// effect. Returns the share for the pulses to come.
-    pub fn frame(&mut self, pulse: Option<f32>, trusted: bool) -> PulseShare {
+    /// plain guide frame; `interval_s` the time since the frame before;
+    /// `trusted`: the model's feed-forward is in full effect. Returns the
+    /// share for the pulses to come.
+    pub fn frame(&mut self, pulse: Option<f32>, interval_s: f32, trusted: bool) -> PulseShare {
         let Some(u) = pulse.filter(|u| u.is_finite()) else {
             self.previous = None;
             self.before_previous = None;
             self.last_beyond = None;
             return PulseShare::FULL;
         };
-        self.scored = self.scored.saturating_add(1);
-        let w = self.scored.min(WINDOW_FRAMES) as f32;
-        self.square += (u * u - self.square) / w;
+        if core::mem::take(&mut self.after_calibration)
+            && !(interval_s <= CARRY_INTERVAL * self.stats.interval_s)
+        {
+            self.stats = Statistics::NONE;
+        }
+        let before = self.stats;
+        self.stats.scored = self.stats.scored.saturating_add(1);
+        let w = self.stats.scored.min(WINDOW_FRAMES) as f32;
+        if interval_s.is_finite() {
+            // A share restored across a power cycle has no interval yet:
+            // the first one starts the mean.
+            let w = if self.stats.interval_s > 0.0 { w } else { 1.0 };
+            self.stats.interval_s += (interval_s - self.stats.interval_s) / w;
+        }
+        self.stats.square += (u * u - self.stats.square) / w;
         let previous = self.previous.replace(u);
         if let Some(p) = previous {
-            self.lagged += (u * p - self.lagged) / w;
+            self.stats.lagged += (u * p - self.stats.lagged) / w;
         }
         if let Some(p) = self.before_previous {
-            self.lagged_two += (u * p - self.lagged_two) / w;
+            self.stats.lagged_two += (u * p - self.stats.lagged_two) / w;
         }
         self.before_previous = previous;
         let bound = self.outlier_bound();
@@ -253,37 +303,51 @@ impl EarnedShare {
         let step = beyond && self.last_beyond.is_some_and(|b| b * u > 0.0);
         if beyond {
             self.last_beyond = Some(u);
+            self.before_run.get_or_insert(before);
         } else if u != 0.0 {
             self.last_beyond = None;
+            self.before_run = None;
         }
         if self.least >= 1.0 || !trusted || !measured || step {
-            self.fraction = 1.0;
+            self.stats.fraction = 1.0;
         } else if !beyond {
-            let correlation = clamp(self.lagged / self.square, -1.0, 1.0);
-            let mut f = self.fraction * (1.0 + RATE * correlation);
+            let correlation = clamp(self.stats.lagged / self.stats.square, -1.0, 1.0);
+            let mut f = self.stats.fraction * (1.0 + RATE * correlation);
             if let Some(share) = self.restored.filter(|&s| s < f && correlation < 0.0) {
                 f -= BACK_PER_FRAME * (f - share);
             }
-            self.fraction = clamp(f, self.least, 1.0);
+            self.stats.fraction = clamp(f, self.least, 1.0);
         }
-        if self.fraction >= 1.0 || !self.fraction.is_finite() {
-            self.fraction = 1.0;
+        if self.stats.fraction >= 1.0 || !self.stats.fraction.is_finite() {
+            self.stats.fraction = 1.0;
             return PulseShare::FULL;
         }
         PulseShare {
-            fraction: self.fraction,
+            fraction: self.stats.fraction,
             up_to_arcsec: bound,
         }
     }
 
+    /// The guider is calibrating: the pulses beyond the bound since the
+    /// last plain one were its first steps, no guide pulses. The share and
+    /// the statistics go back to what they were before them (a step's full
+    /// pulses too), so that guiding after the calibration goes on with the
+    /// share earned before it.
+    pub fn calibrating(&mut self) {
+        if let Some(before) = self.before_run.take() {
+            self.stats = before;
+        }
+        self.after_calibration = true;
+    }
+
     /// A window of pulses scored, not all of them 0.
     fn measured(&self) -> bool {
-        self.scored >= WINDOW_FRAMES && self.square > 0.0
+        self.stats.scored >= WINDOW_FRAMES && self.stats.square > 0.0
     }
 
     /// [`OUTLIER_RMS`] times the RMS of the recent pulses, arcsec.
     fn outlier_bound(&self) -> f32 {
-        OUTLIER_RMS * libm::sqrtf(self.square)
+        OUTLIER_RMS * libm::sqrtf(self.stats.square)
     }
 
     /// 4 RMS of the recent pulses (arcsec), once measured.
@@ -297,12 +361,12 @@ impl EarnedShare {
         if !self.measured() {
             return 0.0;
         }
-        clamp(self.lagged_two / self.square, -1.0, 1.0)
+        clamp(self.stats.lagged_two / self.stats.square, -1.0, 1.0)
     }
 
     /// The share now, 1 when none is earned.
     pub fn fraction(&self) -> f32 {
-        self.fraction
+        self.stats.fraction
     }
 }
 
@@ -320,7 +384,7 @@ mod tests {
         let (mut error, mut sum) = (0.0f64, 0.0);
         for k in 0..3_000 {
             let pulse = 0.7 * (error + noise.next());
-            let share = d.frame(Some(pulse as f32), trusted);
+            let share = d.frame(Some(pulse as f32), 1.0, trusted);
             error += walk * noise.next() - share.fraction as f64 * pulse;
             if k >= 1_000 {
                 sum += share.fraction as f64;
@@ -349,7 +413,7 @@ mod tests {
         let mut least = f32::INFINITY;
         for k in 0..3_000 {
             let pulse = 0.7 * (error + noise.next());
-            let share = d.frame(Some(pulse as f32), true);
+            let share = d.frame(Some(pulse as f32), 1.0, true);
             error -= share.fraction as f64 * pulse;
             if k >= WINDOW_FRAMES {
                 least = least.min(d.swing());
@@ -360,7 +424,7 @@ mod tests {
         let mut d = EarnedShare::new(0.2);
         for k in 0..200 {
             let swing = [3.0, 3.0, -3.0, -3.0][k % 4];
-            d.frame(Some((swing + noise.next()) as f32), true);
+            d.frame(Some((swing + noise.next()) as f32), 1.0, true);
         }
         assert!(d.swing() < -0.7, "{}", d.swing());
     }
@@ -370,8 +434,8 @@ mod tests {
         let mut noise = Gaussian::new(5);
         for _ in 0..1_000 {
             let u = noise.next() as f32;
-            d.frame(Some(u), true);
-            d.frame(Some(-u), true);
+            d.frame(Some(u), 1.0, true);
+            d.frame(Some(-u), 1.0, true);
         }
     }
 
@@ -386,22 +450,22 @@ mod tests {
         // Not trusted: full pulses, and the share once trusted again.
         let mut r = EarnedShare::new(0.2);
         r.restore(back);
-        assert_eq!(r.frame(Some(0.1), false), PulseShare::FULL);
+        assert_eq!(r.frame(Some(0.1), 1.0, false), PulseShare::FULL);
         let mut share = 1.0;
         for k in 0..60 {
             let u = if k % 2 == 0 { 0.1 } else { -0.1 };
-            share = r.frame(Some(u), true).fraction;
+            share = r.frame(Some(u), 1.0, true).fraction;
         }
         assert!(share < 0.5, "{share}");
         // Trusted from the start: the saved share at once.
         let mut r = EarnedShare::new(0.2);
         r.restore(back);
-        let share = r.frame(Some(0.1), true).fraction;
+        let share = r.frame(Some(0.1), 1.0, true).fraction;
         assert!((share - saved.fraction).abs() < 0.05, "{share}");
         // Nothing measured, nothing saved: earned again.
         let fresh = EarnedShare::new(0.2).saved();
         r.restore(fresh);
-        assert_eq!(r.frame(Some(0.1), true), PulseShare::FULL);
+        assert_eq!(r.frame(Some(0.1), 1.0, true), PulseShare::FULL);
     }
 
     #[test]
@@ -442,39 +506,77 @@ mod tests {
     }
 
     #[test]
+    fn a_calibrations_first_steps_leave_the_share_earned_before_it() {
+        let calibrated = |interval_after: f32| {
+            let mut d = EarnedShare::new(0.2);
+            earned(&mut d);
+            let share = d.frame(Some(0.1), 1.0, true);
+            assert!(share.fraction < 0.5, "{share:?}");
+            // Two equal steps beyond the bound, taken for guide pulses
+            // until the third makes them a calibration: full pulses.
+            d.frame(Some(20.0), 1.0, true);
+            assert_eq!(d.frame(Some(20.0), 1.0, true), PulseShare::FULL);
+            d.calibrating();
+            assert_eq!(d.frame(None, 1.0, true), PulseShare::FULL);
+            d.calibrating();
+            (share, d.frame(Some(0.1), interval_after, true))
+        };
+        // Guiding goes on at the cadence before: the share earned before,
+        // as one more plain pulse leaves it.
+        let (share, after) = calibrated(1.0);
+        assert!(
+            (after.fraction - share.fraction).abs() < 0.01,
+            "{share:?} {after:?}"
+        );
+        assert!((after.up_to_arcsec / share.up_to_arcsec - 1.0).abs() < 0.01);
+        // Frames further apart: earned again.
+        let (_, after) = calibrated(CARRY_INTERVAL * 1.1);
+        assert_eq!(after, PulseShare::FULL);
+        // A plain pulse between the steps and the calibration: they were
+        // guide pulses, and stay.
+        let mut d = EarnedShare::new(0.2);
+        earned(&mut d);
+        d.frame(Some(20.0), 1.0, true);
+        d.frame(Some(20.0), 1.0, true);
+        d.frame(Some(0.1), 1.0, true);
+        d.calibrating();
+        assert_eq!(d.frame(Some(0.1), 1.0, true), PulseShare::FULL);
+    }
+
+    #[test]
     fn pulses_beyond_the_recent_ones_bring_full_pulses_only_twice_the_same_way() {
         let mut d = EarnedShare::new(0.2);
         let mut noise = Gaussian::new(4);
         for _ in 0..1_000 {
             // Anti-correlated pulses: a loop reacting to noise.
             let u = noise.next() as f32;
-            d.frame(Some(u), true);
-            d.frame(Some(-u), true);
+            d.frame(Some(u), 1.0, true);
+            d.frame(Some(-u), 1.0, true);
         }
-        let share = d.frame(Some(0.1), true);
+        let share = d.frame(Some(0.1), 1.0, true);
         assert!(share.fraction < 0.5, "{share:?}");
         assert!(share.up_to_arcsec > 0.0);
         // One alone, or answered the other way (an overcorrection): the
         // fast part carries it out in full, the share stays.
-        let beyond = d.frame(Some(10.0), true);
+        let beyond = d.frame(Some(10.0), 1.0, true);
         assert!(10.0 > beyond.up_to_arcsec, "{beyond:?}");
         assert_eq!(beyond.fraction, share.fraction);
-        let answered = d.frame(Some(-12.0), true);
+        let answered = d.frame(Some(-12.0), 1.0, true);
         assert!(12.0 > answered.up_to_arcsec, "{answered:?}");
         assert_eq!(answered.fraction, share.fraction);
         // Twice the same way, frames without a pulse between: an error to
         // follow, full pulses.
-        d.frame(Some(0.0), true);
-        assert_eq!(d.frame(Some(-14.0), true), PulseShare::FULL);
+        d.frame(Some(0.0), 1.0, true);
+        assert_eq!(d.frame(Some(-14.0), 1.0, true), PulseShare::FULL);
         // A dither's frame and a non-finite pulse: full pulses.
-        d.frame(Some(0.1), true);
-        assert_eq!(d.frame(None, true), PulseShare::FULL);
-        assert_eq!(d.frame(Some(f32::NAN), true), PulseShare::FULL);
+        d.frame(Some(0.1), 1.0, true);
+        assert_eq!(d.frame(None, 1.0, true), PulseShare::FULL);
+        assert_eq!(d.frame(Some(f32::NAN), 1.0, true), PulseShare::FULL);
         // Switched off.
         let mut off = EarnedShare::new(1.0);
         for k in 0..500 {
             let u = if k % 2 == 0 { 1.0 } else { -1.0 };
-            assert_eq!(off.frame(Some(u), true), PulseShare::FULL);
+            assert_eq!(off.frame(Some(u), 1.0, true), PulseShare::FULL);
         }
     }
 }
