@@ -36,7 +36,7 @@
 //! recent ones, twice the same way. Once it is recognised they are taken
 //! back out ([`EarnedShare::calibrating`]): guiding after it goes on with
 //! the share earned before, unless its frames come further apart
-//! ([`CARRY_INTERVAL`]), where more of the error falls to each pulse and
+//! (`CARRY_INTERVAL`), where more of the error falls to each pulse and
 //! the share is earned again.
 //!
 //! Across a power cycle: the share and the statistics behind it are saved
