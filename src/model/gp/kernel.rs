@@ -5,6 +5,7 @@
 //! makes them quasi-periodic. The projection kernel used for prediction drops
 //! the short SE, which only absorbs transient wander while fitting.
 
+use crate::model::numeric::cos_sin;
 use crate::model::numeric::scalar::Scalar;
 
 /// The worm's periodic length scale, natural units (s), as in the
@@ -62,7 +63,7 @@ pub struct Kernel<S, const N: usize> {
 /// Natural length scale -> standard form of the periodic kernel,
 /// ℓ -> 4 sin(ℓ π / P), with ℓ floored at 1 s as in the single-kernel model.
 fn standard_length_scale(natural: f64, period: f64) -> f64 {
-    4.0 * libm::sin(natural.max(1.0) * core::f64::consts::PI / period)
+    4.0 * cos_sin::sin(natural.max(1.0) * core::f64::consts::PI / period)
 }
 
 impl<S: Scalar, const N: usize> Kernel<S, N> {

@@ -16,6 +16,7 @@ use core::f64::consts::TAU;
 
 use crate::model::gp::grid::CELL_S;
 use crate::model::ldlt::Ldlt;
+use crate::model::numeric::cos_sin::cos_sin;
 
 /// Harmonics fitted per stage (the synthetic gears have up to the worm's
 /// fourth and the other stages' second).
@@ -143,7 +144,10 @@ fn fitted<const N: usize>(
 /// target `f64` is in software, and a call costs thousands of
 /// instructions); in `f64` a grid's rotations drift by about 1e-13.
 fn phasors<const N: usize>(periods: &[f64; N], first: f64) -> impl Iterator<Item = [[f64; 2]; N]> {
-    let turn = |angle: f64| [libm::cos(angle), libm::sin(angle)];
+    let turn = |angle: f64| {
+        let (c, s) = cos_sin(angle);
+        [c, s]
+    };
     let mut now = periods.map(|p| turn(TAU * first / p));
     let step = periods.map(|p| turn(TAU * CELL_S / p));
     core::iter::from_fn(move || {
@@ -274,11 +278,8 @@ impl<const N: usize> Harmonics<N> {
         let (Some(coeffs), Some(&period)) = (self.coeffs.get_mut(s), self.periods.get(s)) else {
             return;
         };
-        let phi = TAU * by / period;
-        for ([a, b], [c, sn]) in coeffs
-            .iter_mut()
-            .zip(harmonics(libm::cos(phi), libm::sin(phi)))
-        {
+        let (cos_phi, sin_phi) = cos_sin(TAU * by / period);
+        for ([a, b], [c, sn]) in coeffs.iter_mut().zip(harmonics(cos_phi, sin_phi)) {
             (*a, *b) = (*a * c + *b * sn, *b * c - *a * sn);
         }
     }
@@ -299,7 +300,8 @@ impl<const N: usize> Harmonics<N> {
             return 0.0;
         };
         let theta = TAU * t / period;
-        share(coeffs, libm::cos(theta), libm::sin(theta))
+        let (c, s) = cos_sin(theta);
+        share(coeffs, c, s)
     }
 
     /// Whether any harmonic of stage `s` was fitted.
@@ -327,11 +329,11 @@ impl<const N: usize> Harmonics<N> {
         // angle once, the candidates by rotation.
         let mut sums = [[0.0f64; 2]; PHASE_STEPS];
         let step = TAU / PHASE_STEPS as f64;
-        let (step_cos, step_sin) = (libm::cos(step), libm::sin(step));
+        let (step_cos, step_sin) = cos_sin(step);
         let mut n = 0usize;
         for (t, r) in residuals {
             let theta = TAU * t / period;
-            let (mut c, mut sn) = (libm::cos(theta), libm::sin(theta));
+            let (mut c, mut sn) = cos_sin(theta);
             for sum in &mut sums {
                 let value: f64 = coeffs
                     .iter()
