@@ -12,7 +12,7 @@
 //!
 //! `x = k π/2 + r`, `|r| <= π/4`, with `π/2` split into two 33-bit parts
 //! and a rest, so that `k` times each part is exact for `|k| < 2^20`
-//! ([`EXACT_BELOW`], about 1.6e6 rad; beyond, the remainder rounds by
+//! (angles up to about 1.6e6 rad; beyond, the remainder rounds by
 //! about `|x| * 1e-16`, and past about 1e15 rad, where an `f64` holds no
 //! phase, the result is some value within [-1, 1]); then the Taylor series
 //! of `sin r` to `r^17` and of `cos r` to `r^18` (the first terms left out
@@ -25,9 +25,6 @@ use core::f64::consts::{FRAC_2_PI, FRAC_PI_4};
 const PIO2_1: f64 = 1.570_796_326_734_125_6;
 const PIO2_2: f64 = 6.077_100_506_303_966e-11;
 const PIO2_3: f64 = 2.022_266_248_795_950_6e-21;
-
-/// Angles below this (rad) are reduced exactly.
-pub const EXACT_BELOW: f64 = 1_048_576.0 * core::f64::consts::FRAC_PI_2;
 
 /// `(cos x, sin x)`; NaN for a non-finite `x`.
 pub fn cos_sin(x: f64) -> (f64, f64) {
@@ -68,37 +65,49 @@ fn reduce(x: f64) -> (i64, f64) {
     ((k as i64) & 3, r)
 }
 
-/// `1/n!` for the series' terms.
-const fn inverse_factorial(n: u32) -> f64 {
-    let mut f = 1.0;
-    let mut i = 2;
-    while i <= n {
-        f *= i as f64;
-        i += 1;
+/// The Taylor series' coefficients of `r^n` for `n = first, first + 2,
+/// ..., first + 14`, highest power first: `(-1)^(n/2) / n!` (integer
+/// division), the signs of `sin` for odd `first` and of `cos` for even.
+const fn series(first: u32) -> [f64; 8] {
+    let mut terms = [0.0; 8];
+    let (mut factorial, mut n) = (1.0, 1);
+    let mut k = 0;
+    while k < 8 {
+        let power = first + 2 * k as u32;
+        while n <= power {
+            factorial *= n as f64;
+            n += 1;
+        }
+        let sign = if (power / 2).is_multiple_of(2) {
+            1.0
+        } else {
+            -1.0
+        };
+        terms[7 - k] = sign / factorial;
+        k += 1;
     }
-    1.0 / f
+    terms
+}
+
+/// `r^3 .. r^17` of `sin r`, and `r^4 .. r^18` of `cos r`.
+const SIN_TERMS: [f64; 8] = series(3);
+const COS_TERMS: [f64; 8] = series(4);
+
+/// `z` in the polynomial of `terms`, by Horner's rule.
+fn horner(terms: &[f64; 8], z: f64) -> f64 {
+    terms.iter().fold(0.0, |p, &t| t + z * p)
 }
 
 /// `sin r` for `|r| <= π/4`: `r - r^3/3! + ... + r^17/17!`.
 fn sin_reduced(r: f64) -> f64 {
     let z = r * r;
-    let mut p = inverse_factorial(17);
-    for n in [15, 13, 11, 9, 7, 5, 3] {
-        let sign = if n % 4 == 3 { -1.0 } else { 1.0 };
-        p = sign * inverse_factorial(n) + z * p;
-    }
-    r + r * z * p
+    r + r * z * horner(&SIN_TERMS, z)
 }
 
 /// `cos r` for `|r| <= π/4`: `1 - r^2/2! + ... + r^18/18!`.
 fn cos_reduced(r: f64) -> f64 {
     let z = r * r;
-    let mut p = -inverse_factorial(18);
-    for n in [16, 14, 12, 10, 8, 6, 4] {
-        let sign = if n % 4 == 2 { -1.0 } else { 1.0 };
-        p = sign * inverse_factorial(n) + z * p;
-    }
-    (1.0 - 0.5 * z) + z * z * p
+    (1.0 - 0.5 * z) + z * z * horner(&COS_TERMS, z)
 }
 
 #[cfg(test)]
