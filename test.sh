@@ -72,10 +72,10 @@ L475_RAM_MAX=$((80 * 1024))
 # 29) two copies more of embassy-sync's pipe borrow inlined into a task: 307;
 # the worm index's own interrupt handler instead of embassy's EXTI future: 303.
 PANIC_SITES_MAX=303
-# The largest stack frame of any one function: 4,640 B today (the model's
-# frame). A large value built in a stack temporary (the grid's 16 KiB,
-# once) overflows the L475's 20 KiB stack at boot, which only the board
-# step would otherwise show.
+# The largest stack frame of any one function (the model's frame is the
+# largest; docs/results.md has its size). A large value built in a stack
+# temporary (the grid's 16 KiB, once) overflows the L475's 20 KiB stack at
+# boot, which only the board step would otherwise show.
 STACK_FRAME_MAX=8192
 
 kib() { printf '%d.%d KiB' $(($1 / 1024)) $((($1 % 1024) * 10 / 1024)); }
