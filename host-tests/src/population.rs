@@ -114,6 +114,7 @@ impl Mount {
         Conditions {
             dt_s: self.exposure_s,
             walk_px_per_sqrt_min: self.walk_px_per_sqrt_min,
+            paper_seeds: false,
         }
     }
 
@@ -151,14 +152,12 @@ pub fn draw(seed: u64, count: usize) -> Vec<Mount> {
         .collect()
 }
 
-/// Where `seed`'s mounts start in the generator's stream. splitmix64's
-/// state starts at seed x gamma and steps one gamma per mount, so seed S's
-/// mount k would be seed S - 1's mount k + 1: nearby seeds shared all but a
-/// few mounts. Seeds are spread 2^32 mounts apart (seeds that differ by a
-/// multiple of 2^32 coincide), anchored at the development seed so that its
-/// mounts stay those the docs measure.
+/// Where `seed`'s mounts start in the generator's stream: one step per
+/// mount, so nearby seeds are spread apart ([`crate::noise::apart`]),
+/// anchored at the development seed so that its mounts stay those the docs
+/// measure.
 fn stream_seed(seed: u64) -> u64 {
-    DEVELOPMENT_SEED.wrapping_add(seed.wrapping_sub(DEVELOPMENT_SEED) << 32)
+    crate::noise::apart(seed, DEVELOPMENT_SEED)
 }
 
 /// One mount at one noise level: residual RMS (model's loop) and pointing

@@ -48,7 +48,7 @@
 
 use crate::cases::Case;
 use crate::guide_algorithm::{GuideAlgorithm, Hysteresis};
-use crate::noise::Gaussian;
+use crate::noise::{self, Gaussian};
 use crate::store_sim::SimStore;
 use mkgp_mount::control_loop::learning::{LearningPolicy, StoreStep};
 use mkgp_mount::control_loop::port_motion::PortMotionCounters;
@@ -505,14 +505,14 @@ impl Rig {
             levels: [false; 4],
             guider: GuiderSettings::default(),
             hysteresis: Hysteresis::phd2_baseline(),
-            noise: (noise_px > 0.0).then(|| (noise_px, Gaussian::new(seed))),
+            noise: (noise_px > 0.0).then(|| (noise_px, noise::for_run(seed))),
             guider_on: true,
             lock_arcsec: 0.0,
             gear_phase_s: 0.0,
             hand_arcsec: 0.0,
             score_window_s: (SCORE_FROM_S, f64::INFINITY),
             sky: Sky::default(),
-            walk: (0.0, Gaussian::new(seed + 1000)),
+            walk: (0.0, noise::for_run(seed + 1000)),
             dither_next: None,
             exposure_sum: 0.0,
             exposure_gear_sum: 0.0,

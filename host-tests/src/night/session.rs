@@ -18,7 +18,7 @@ use super::phd2_writer::{Calibrated, Header, Phd2Writer, Pointing, Row};
 use super::script::{self, Event, Section, Way, What};
 use crate::gp::trace;
 use crate::mount_sim::IDENTITY;
-use crate::noise::Gaussian;
+use crate::noise::{self, Gaussian};
 use crate::st4_sim::{Exposure, GuiderSettings, Rig};
 use mkgp_mount::control_loop::port_mount::PortState;
 use mkgp_mount::mount::config::SIDEREAL_ARCSEC_PER_S;
@@ -259,7 +259,7 @@ impl Session {
             seed,
             port: Interpreter::default(),
             port_state,
-            dec_noise: (noise_px > 0.0).then(|| (noise_px, Gaussian::new(seed + 2000))),
+            dec_noise: (noise_px > 0.0).then(|| (noise_px, noise::for_run(seed + 2000))),
             log: log.then(|| Logging {
                 phd2: Phd2Writer::new(),
                 truth: format!("{TRUTH_HEADER}\n"),
