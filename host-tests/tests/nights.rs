@@ -1,5 +1,5 @@
 //! The learned model across a power cycle (`guide-sim nights`): the issue's
-//! goals at the tolerances measured. The full table, both starts of night 2
+//! goals. The full table, both starts of night 2
 //! (about a minute each on 2 cores).
 
 use host_tests::cases;
@@ -34,7 +34,7 @@ fn goals_with_the_gear_moved_while_off() {
         r.restored_first30 <= r.cold_first30 && r.restored_index_first30 <= r.cold_first30
     });
     // Without an index: the goal, 0.85 x cold on C5-C8 noise-free, is the
-    // bar; measured 0.47-0.65 (with the phase search; 0.73-0.81 without).
+    // bar.
     check(&rows, "restored > 0.85 x cold on C5-C8", |r| {
         !(r.noise_px == 0.0 && ["C5", "C6", "C7", "C8"].contains(&r.case.as_str()))
             || r.restored_first30 <= 0.85 * r.cold_first30
@@ -63,8 +63,7 @@ fn goals_with_the_gear_parked() {
         r.restored_first30 <= r.cold_first30 && r.restored_index_first30 <= r.cold_first30
     });
     // Every phase carries over: the goal, within 1.15 x settled on every
-    // row (measured 0.77-1.06; 1 px with the earned share saved with
-    // the model).
+    // row (at 1 px with the earned share saved with the model).
     check(&rows, "park > 1.15 x settled", |r| {
         r.restored_index_first30 <= 1.15 * r.settled
     });
