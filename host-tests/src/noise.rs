@@ -73,7 +73,10 @@ mod tests {
         // Seed 1 is INDIGO's stream; the plain generator's seed 3 is seed
         // 1's from the third normal on.
         assert_eq!(first(&mut for_run(1)), first(&mut Gaussian::new(1)));
-        assert_eq!(first(&mut Gaussian::new(3))[..62], first(&mut Gaussian::new(1))[2..]);
+        assert_eq!(
+            first(&mut Gaussian::new(3))[..62],
+            first(&mut Gaussian::new(1))[2..]
+        );
         let runs: Vec<Vec<f64>> = (1..=4).map(|s| first(&mut for_run(s))).collect();
         for (i, a) in runs.iter().enumerate() {
             for b in &runs[i + 1..] {
