@@ -96,7 +96,7 @@ pub fn run_in(
     };
     let mut noise = (sigma_px > 0.0).then(|| generator(seed));
     let walk_step = conditions.walk_px_per_sqrt_min * (dt / 60.0).sqrt();
-    let (mut walk, mut walk_gen) = (0.0, noise::for_run(seed + 1000));
+    let (mut walk, mut walk_gen) = (0.0, noise::walk(seed));
     let frames = (FRAMES as f64 * DT / dt).ceil() as usize;
     let mut applied = 0.0; // U
     let (mut sum_sq, mut count) = (0.0, 0usize);

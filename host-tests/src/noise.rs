@@ -23,6 +23,17 @@ pub fn for_run(seed: u64) -> Gaussian {
     Gaussian::new(apart(seed, 1))
 }
 
+/// The slow random walk of run `seed`'s error, apart from its camera's
+/// noise ([`for_run`] of the seed itself).
+pub fn walk(seed: u64) -> Gaussian {
+    for_run(seed + 1000)
+}
+
+/// The Dec axis' camera noise of run `seed`, apart from RA's and the walk.
+pub fn dec(seed: u64) -> Gaussian {
+    for_run(seed + 2000)
+}
+
 /// `seed` as a splitmix64 seed 2^32 steps from each neighbour, `anchor`
 /// where it was: streams of nearby seeds no longer overlap (seeds that
 /// differ by a multiple of 2^32 coincide).

@@ -512,7 +512,7 @@ impl Rig {
             hand_arcsec: 0.0,
             score_window_s: (SCORE_FROM_S, f64::INFINITY),
             sky: Sky::default(),
-            walk: (0.0, noise::for_run(seed + 1000)),
+            walk: (0.0, noise::walk(seed)),
             dither_next: None,
             exposure_sum: 0.0,
             exposure_gear_sum: 0.0,

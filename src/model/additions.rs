@@ -16,7 +16,7 @@ pub enum Acts {
     /// Only the firmware's loop: the learner, the loop's fast part, or a
     /// part of the model only the learner reads.
     Firmware,
-    /// Only across a power cycle: on a restored model.
+    /// Across a power cycle: on a restored model, where its worth shows.
     Restore,
 }
 
@@ -70,9 +70,12 @@ additions! {
     /// earned from the pulses' correlation (`mount::guiding::earned_share`).
     /// Off: every pulse in full.
     earned_share: Firmware,
-    /// The learner: the share is earned only while the model is trusted in
-    /// full. Off: from the first measured pulses.
-    trusted_gate: Firmware,
+    /// The learner: the share is earned, and a share saved with a
+    /// restored model used, only while the model is trusted in full. Off:
+    /// from the first measured pulses. Measured across a power cycle, where
+    /// it pays (a restored model's first frames); on a cold start it acts
+    /// alike.
+    trusted_gate: Restore,
     /// The learner: a feed-forward lasts three of the guider's frames. Off:
     /// one.
     feed_forward_horizon: Firmware,
@@ -268,7 +271,6 @@ mod tests {
             "bump",
             "pulse_weight",
             "earned_share",
-            "trusted_gate",
             "feed_forward_horizon",
             "feed_forward_weight",
             "calibration_watch",
@@ -285,6 +287,7 @@ mod tests {
             "phase_retry",
             "level_match",
             "saved_share",
+            "trusted_gate",
         ];
         for &(name, acts) in Additions::NAMES {
             let want = if firmware.contains(&name) {

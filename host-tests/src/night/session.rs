@@ -259,7 +259,7 @@ impl Session {
             seed,
             port: Interpreter::default(),
             port_state,
-            dec_noise: (noise_px > 0.0).then(|| (noise_px, noise::for_run(seed + 2000))),
+            dec_noise: (noise_px > 0.0).then(|| (noise_px, noise::dec(seed))),
             log: log.then(|| Logging {
                 phd2: Phd2Writer::new(),
                 truth: format!("{TRUTH_HEADER}\n"),
