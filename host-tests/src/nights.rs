@@ -204,7 +204,7 @@ pub fn one_seed(run: Run, seed: u64, start: Night2Start) -> [f64; 4] {
 
 /// One row: the mean over [`SEEDS`], each its own night-2 phase (and
 /// noise), the firmware running `additions`.
-pub fn row(case: &Case, noise_px: f64, start: Night2Start, additions: Additions) -> Row {
+fn row(case: &Case, noise_px: f64, start: Night2Start, additions: Additions) -> Row {
     let run = Run::case(case, noise_px, additions);
     let runs: Vec<[f64; 4]> = SEEDS
         .par_iter()

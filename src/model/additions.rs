@@ -212,6 +212,11 @@ additions! {
     /// until an F-test picks each one clearly, up to half a worm period.
     /// Off: the first search places them.
     phase_retry: Restore,
+    /// The restore: once the stages are put back, their phases are searched
+    /// again over all the new data at each new cell, up to a worm period of
+    /// it, and each stage moved where the data picks its phase clearly.
+    /// Off: they stay where the first search put them.
+    phase_refine: Restore,
     /// The restore: at the first measured frame the restored (or, after
     /// a slew, re-placed) data moves to meet the measured gear error's
     /// level (the mount's reconstruction starts again from 0 each night;
@@ -285,6 +290,7 @@ mod tests {
             "phase_search",
             "stage_phases",
             "phase_retry",
+            "phase_refine",
             "level_match",
             "saved_share",
             "trusted_gate",
