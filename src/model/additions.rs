@@ -208,14 +208,11 @@ additions! {
     /// placed at the worm's phase, the other stages left out of the fit
     /// until a search of the whole at that phase, a quarter worm period on.
     stage_phases: Restore,
-    /// The restore: the stages' phases are searched again at each new cell
-    /// until an F-test picks each one clearly, up to half a worm period.
-    /// Off: the first search places them.
-    phase_retry: Restore,
-    /// The restore: once the stages are put back, their phases are searched
-    /// again over all the new data at each new cell, up to a worm period of
-    /// it, and each stage moved where the data picks its phase clearly.
-    /// Off: they stay where the first search put them.
+    /// The restore: once the stages are put back (at the phases the first
+    /// search finds), their phases are searched again over all the new
+    /// data at each new cell, up to half a worm period of it, and each
+    /// stage moved where the data picks its phase clearly. Off: they stay
+    /// where the first search put them.
     phase_refine: Restore,
     /// The restore: at the first measured frame the restored (or, after
     /// a slew, re-placed) data moves to meet the measured gear error's
@@ -289,7 +286,6 @@ mod tests {
             "placement_search",
             "phase_search",
             "stage_phases",
-            "phase_retry",
             "phase_refine",
             "level_match",
             "saved_share",

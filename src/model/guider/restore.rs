@@ -55,19 +55,20 @@ const PHASE_SEARCH_PERIODS: f64 = 0.5;
 /// against 0.35 and 0.5 on `guide-sim nights`; docs/model.md).
 const WORM_PHASE_SEARCH_PERIODS: f64 = 0.25;
 /// The same with the other stages fitted apart: each stage's phase and a
-/// level are all that is searched, first this early, then until the data
-/// picks the phase clearly (measured on `guide-sim nights`; docs/model.md).
+/// level are all that is searched, first this early, then again as the
+/// data comes (`phase_refine`; measured on `guide-sim nights`,
+/// docs/model.md).
 const STAGE_PHASE_SEARCH_PERIODS: f64 = 0.05;
 /// A stage's phase is first searched once the new data spans this much
 /// of its period too: a twentieth of C2's 380 s stage (5 cells) is nearly
 /// a line, and the F-test passed phases far off (docs/model.md).
 const STAGE_SEARCH_FRACTION: f64 = 0.15;
-/// Until the new data picks each stage's phase clearly (an F-test at 95 %
-/// against every phase an eighth of a period or more away), the search
-/// runs again at every new cell, up to this many worm periods of new data
-/// (measured on `guide-sim nights`, docs/model.md); once the stages are
-/// put back, it runs on to the same span (`phase_refine`).
-const STAGE_PHASE_SEARCH_MAX_PERIODS: f64 = 0.5;
+/// Once the stages are put back, their phases are searched again at every
+/// new cell, up to this many worm periods of new data, and each stage moved
+/// where the new data picks its phase clearly (an F-test at 95 % against
+/// every phase an eighth of a period or more away): `phase_refine`, as
+/// good at 0.5, 1 and 2 on `guide-sim nights` (docs/model.md).
+const STAGE_PHASE_REFINE_PERIODS: f64 = 0.5;
 /// Phase error per second of gap between the saved data and the first new
 /// frame, s/s: the relative error of a tracked period (C5 after 8,000 s in
 /// `f32`: 432.23 s for 432 s, 5e-4).
@@ -143,7 +144,7 @@ pub(super) struct Restore<const N: usize> {
     resume: Option<Resume>,
     /// The guider's additions (its configuration does not change), of
     /// which the restore's own (`placement_search`, `phase_search`,
-    /// `stage_phases`, `phase_retry`, `level_match`) decide what it does.
+    /// `stage_phases`, `phase_refine`, `level_match`) decide what it does.
     adds: Additions,
     /// Restored data waiting for the phase search.
     phase_search: Option<PhaseSearch<N>>,
@@ -499,26 +500,14 @@ impl<const N: usize> Restore<N> {
         match search.stages {
             Some((saved, h)) => {
                 let (phases, level) = find_stage_phases(grid, scratch, search.new_from, &h);
-                let placed = phases.iter().flatten().all(|p| p.is_clear());
-                // The last wait: the next cell would pass the most.
-                let last = new_cells as f64 + 1.0 > STAGE_PHASE_SEARCH_MAX_PERIODS * worm_cells;
-                if placed || full || last || !self.adds.phase_retry {
-                    move_stages(grid, scratch, saved, &h, None, (&phases, level));
-                    self.refine = self.adds.phase_refine.then_some(Refine {
-                        new_from: search.new_from,
-                        saved,
-                        taken: h,
-                        placed: (phases, level),
-                        cells: grid.len(),
-                    });
-                } else {
-                    // Again at the next cell (half a cell of slack, as the
-                    // wait is in worm periods).
-                    self.phase_search = Some(PhaseSearch {
-                        wait_periods: (new_cells as f64 + 0.5) / worm_cells,
-                        ..search
-                    });
-                }
+                move_stages(grid, scratch, saved, &h, None, (&phases, level));
+                self.refine = self.adds.phase_refine.then_some(Refine {
+                    new_from: search.new_from,
+                    saved,
+                    taken: h,
+                    placed: (phases, level),
+                    cells: grid.len(),
+                });
             }
             None => self.search_phase(grid, stages, search.new_from, !search.blocks),
         }
@@ -526,7 +515,7 @@ impl<const N: usize> Restore<N> {
     }
 
     /// At a new cell, until the new data spans
-    /// [`STAGE_PHASE_SEARCH_MAX_PERIODS`]: the put-back stages' phases searched
+    /// [`STAGE_PHASE_REFINE_PERIODS`]: the put-back stages' phases searched
     /// again over all of it, and each stage moved to its phase where the
     /// data picks it clearly.
     fn refine_stages<S: Scalar>(
@@ -543,7 +532,7 @@ impl<const N: usize> Restore<N> {
         }
         let new_cells = grid.len().saturating_sub(r.new_from) as f64;
         // A full grid drops its oldest cells: the indices move.
-        if grid.len() >= GRID_CELLS || new_cells > STAGE_PHASE_SEARCH_MAX_PERIODS * worm_cells {
+        if grid.len() >= GRID_CELLS || new_cells > STAGE_PHASE_REFINE_PERIODS * worm_cells {
             self.refine = None;
             return;
         }
@@ -1276,33 +1265,6 @@ mod tests {
             assert_eq!(search.stages.is_some(), apart);
             assert_eq!(search.wait_periods == WORM_PHASE_SEARCH_PERIODS, !apart);
         }
-    }
-
-    #[test]
-    fn without_phase_retry_the_first_search_places_the_stages() {
-        // Under seeing of 6 px either way the 155 s stage's phase is not
-        // clear at the first search (five cells of new data): with the
-        // retry the search runs again at the next cells, without it the
-        // stage is put back where the first one found it.
-        let g = learned();
-        let phase = 20_000.0;
-        let placed_at = |config| {
-            let (mut r, _, _) = restored_into(&g, config, index(phase));
-            let mut rng = SplitMix64::new(1);
-            let mut t = 0.0;
-            while r.restore.phase_search.is_some() || t == 0.0 {
-                let seeing = rng.f64_in(-6.0, 6.0);
-                r.observe(t, Some(gear(t + phase) + 5.0 + seeing), 0.0, 10.0, 2.0);
-                t += 2.0;
-            }
-            t
-        };
-        let (retried, once) = (
-            placed_at(*g.config()),
-            placed_at(without(&g, "phase_retry")),
-        );
-        std::println!("placed at {retried} s with the retry, {once} s without");
-        assert!(once < retried, "{once} {retried}");
     }
 
     #[test]
