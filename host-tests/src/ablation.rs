@@ -6,9 +6,10 @@
 //! An addition is measured in the loop it acts in ([`Acts`]): the
 //! learner's, the loop's fast part's and `grid_lag` in the firmware's (as
 //! `guide-sim st4`: fw MKGP over the guider alone), the restore's, the
-//! saved share and the trusted gate across a power cycle (as `guide-sim nights`, the gear moved
-//! while off: night 2's first 30 minutes restored, the mean of without and
-//! with the index, over the same cold; `placement_search` acts on a known
+//! saved share and the trusted gate across a power cycle (as `guide-sim
+//! nights`, the gear moved while off: night 2's first 30 minutes restored,
+//! the mean of without and with the index, over the same cold;
+//! `placement_search` acts on a known
 //! phase out of range, which a re-pointing through the port gives and
 //! these nights do not: `guide-sim night` measures it), the model's in
 //! the model's (as `guide-sim table`: the model over the reactive guider),

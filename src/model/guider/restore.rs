@@ -846,8 +846,14 @@ fn move_stages<S: Scalar, const N: usize>(
     from: Option<(&[Option<StagePhase>; N], f64)>,
     to: (&[Option<StagePhase>; N], f64),
 ) {
-    let first = grid.cell_time(0);
     let level = to.1 - from.map_or(0.0, |(_, level)| level);
+    // Most cells of a refine leave every phase where it was: the shares
+    // cancel, and only the level moves.
+    if from.is_some_and(|(phases, _)| phases == to.0) {
+        grid.shift_gear(0..saved, level);
+        return;
+    }
+    let first = grid.cell_time(0);
     let was = from.map(|(phases, _)| placed(h, phases));
     let mut before = was.as_ref().map(|p| p.shares(first));
     let after = placed(h, to.0);
