@@ -196,7 +196,8 @@ pub enum TargetRun {
 /// Builds and runs target-tests' `bench` binary in QEMU: `cargo run
 /// --release --bin bench` in `dir`, whose runner (`.cargo/config.toml`
 /// there) is `qemu-system-arm -machine mps2-an386 -icount shift=0` with
-/// semihosting. Cargo's and QEMU's stderr pass through.
+/// semihosting. Cargo's and QEMU's stderr pass through, and so, to stderr,
+/// do its lines on the frames after a restore.
 pub fn run_target(dir: &Path) -> TargetRun {
     match Command::new("qemu-system-arm")
         .arg("--version")
@@ -245,6 +246,10 @@ pub fn run_target(dir: &Path) -> TargetRun {
             dir.display(),
             out.status
         ));
+    }
+    // The frames after a restore, as the binary prints them.
+    for line in stdout.lines().filter(|l| l.starts_with("restore ")) {
+        eprintln!("{line}");
     }
     let mut rows: Vec<BenchRow> = stdout.lines().filter_map(parse_target_line).collect();
     rows.sort_by_key(|r| r.stages);

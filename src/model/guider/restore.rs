@@ -751,10 +751,12 @@ fn take_out_stages<S: Scalar, const N: usize>(
     let mut h = fitted;
     h.shift(0, worm_shift);
     // The change of each cell (and the open one after them), in the
-    // scratch buffer.
-    let changes = fitted.shares(first).zip(h.shares(first));
-    for (slot, (was, now)) in scratch.iter_mut().zip(changes).take(saved + 1) {
-        *slot = S::from_f64(now[0] - was.iter().sum::<f64>());
+    // scratch buffer: to the worm at its shift alone.
+    let mut worm = h;
+    (1..N).for_each(|s| worm.clear(s));
+    let changes = fitted.change_to(&worm, first);
+    for (slot, change) in scratch.iter_mut().zip(changes).take(saved + 1) {
+        *slot = S::from_f64(change);
     }
     shift_cells_by_scratch(grid, scratch, saved);
     Some(h)
@@ -853,16 +855,10 @@ fn move_stages<S: Scalar, const N: usize>(
         grid.shift_gear(0..saved, level);
         return;
     }
-    let first = grid.cell_time(0);
-    let was = from.map(|(phases, _)| placed(h, phases));
-    let mut before = was.as_ref().map(|p| p.shares(first));
-    let after = placed(h, to.0);
-    for (slot, share) in scratch.iter_mut().zip(after.shares(first)).take(saved) {
-        let was = before
-            .as_mut()
-            .and_then(Iterator::next)
-            .map_or(0.0, |s| s.iter().sum::<f64>());
-        *slot = S::from_f64(share.iter().sum::<f64>() - was + level);
+    let was = placed(h, from.map_or(&[None; N], |(phases, _)| phases));
+    let changes = was.change_to(&placed(h, to.0), grid.cell_time(0));
+    for (slot, change) in scratch.iter_mut().zip(changes).take(saved) {
+        *slot = S::from_f64(change + level);
     }
     shift_cells_by_scratch(grid, scratch, saved);
 }
