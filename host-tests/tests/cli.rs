@@ -75,7 +75,7 @@ fn replay_trace_writes_one_log() {
     assert!(o.status.success(), "{}", stderr(&o));
     // The replay's MKGP over its 1,897 frames (docs/results.md).
     assert!(
-        stdout(&o).contains(": MKGP RMS 0.4551 px over 1897 frames; trace written to"),
+        stdout(&o).contains(": MKGP RMS 0.4563 px over 1897 frames; trace written to"),
         "{}",
         stdout(&o)
     );

@@ -41,20 +41,11 @@ fn goals_with_the_gear_moved_while_off() {
     });
     // With the index (the worm's phase; each other stage's share of the
     // saved cells put back at the phase the new data shows, once it shows
-    // it clearly): the goal, 1.15 x settled, is the bar on every row but
-    // MISSED_AT_THE_SEEING's, which miss it and stay below the cold start.
+    // it clearly): the goal, 1.15 x settled, on every row.
     check(&rows, "index > 1.15 x settled", |r| {
         r.restored_index_first30 <= 1.15 * r.settled
-            || (r.noise_px > 0.0 && MISSED_AT_THE_SEEING.contains(&r.case.as_str()))
     });
 }
-
-/// Where the index restore misses the goal at 1 px, an open problem (issue
-/// 27): until the new data shows each stage's phase only the worm is fed
-/// forward, the pulse share rises in that wait, and C2's 380 s stage is
-/// pulled to shorter periods by the first minutes' spectrum. Noise-free it
-/// meets it.
-const MISSED_AT_THE_SEEING: [&str; 1] = ["C2"];
 
 #[test]
 fn goals_with_the_gear_parked() {

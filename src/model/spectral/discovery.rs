@@ -18,14 +18,11 @@ use crate::model::spectral::fft::FFT_LEN;
 use crate::model::spectral::period::PeriodTracker;
 use crate::model::spectral::spectrum::{bin_period, period_bin, Peak, Spectrum, NYQUIST_BIN};
 
-/// Half-width of a notch, relative, in frequency. The paper uses 8 %; that
-/// hides a stage 7 % from a known peak's harmonic (C5's 155 s stage beside
-/// the 432 s worm's 144 s division) although the commensurability guard
-/// admits it. With candidates required to be local maxima, the notch need
-/// not be wider than the guard. See `docs/model.md`.
-pub const NOTCH_WIDTH: f64 = 0.06;
-/// The paper's notch, without the addition `narrow_notch`.
-pub const PAPER_NOTCH_WIDTH: f64 = 0.08;
+/// Half-width of a notch, relative, in frequency: the paper's 8 %. A stage
+/// inside it (C5's 155 s beside the 432 s worm's 144 s division, 7 % off)
+/// is admitted once the data resolves it from that harmonic
+/// (`near_harmonic`).
+pub const NOTCH_WIDTH: f64 = 0.08;
 /// Multiples `k P` of a known period that are notched, `k = 1..=`.
 pub const NOTCH_MULTIPLES: u32 = 5;
 /// Divisions `P / k` of a known period that are notched, `k = 2..=`.
@@ -48,10 +45,8 @@ pub const FOLLOW_WIDTH: f64 = 0.1;
 pub const HARMONIC_BEATS: f64 = 1.5;
 /// A found stage moves up to twice its period where that line has at least
 /// 1 / this of its own power and would open a gate on its own (the stage's
-/// fundamental: a kernel of period 2P also represents P); a stage not yet
-/// fully gated in moves to twice or half its period where that peak has
-/// this many times its own power; either only to periods below this many
-/// worm periods. Measured on C5-C8 and the PHD2 logs: see `docs/model.md`.
+/// fundamental: a kernel of period 2P also represents P), only to periods
+/// below this many worm periods. Measured on C5-C8 and the PHD2 logs: see `docs/model.md`.
 pub const MOVE_POWER_RATIO: f64 = 2.0;
 pub const MOVE_MAX_WORM_PERIODS: f64 = 0.9;
 /// Evidence gate thresholds on the smoothed amplitude ratio.
@@ -110,14 +105,14 @@ fn division(p: f64, k: f64) -> f64 {
     p / k
 }
 
-/// Whether a peak at `period` lies in the notch (`width` either side,
-/// relative) of a known period, at a multiple or division that `span_s` of
+/// Whether a peak at `period` lies in the notch ([`NOTCH_WIDTH`] either
+/// side, relative) of a known period, at a multiple or division that `span_s` of
 /// data does not resolve it from (span 0: any). `lines[i]` is the line of
 /// `known[i]` in this spectrum.
-pub fn notched(period: f64, known: &[f64], lines: &[f64], span_s: f64, width: f64) -> bool {
+pub fn notched(period: f64, known: &[f64], lines: &[f64], span_s: f64) -> bool {
     known.iter().zip(lines).any(|(&p, &line)| {
         let near = |k: u32, harmonic: fn(f64, f64) -> f64| {
-            (harmonic(p, k as f64) / period - 1.0).abs() <= width
+            (harmonic(p, k as f64) / period - 1.0).abs() <= NOTCH_WIDTH
                 && unresolved(period, (p, line), k, harmonic, span_s)
         };
         (1..=NOTCH_MULTIPLES).any(|k| near(k, multiple))
@@ -162,11 +157,6 @@ fn strongest_peak<S: Scalar>(
 ) -> Option<Peak> {
     let lo = libm::ceil(lo.max(1.0)) as usize;
     let hi = (libm::floor(hi) as usize).min(NYQUIST_BIN);
-    let width = if adds.narrow_notch {
-        NOTCH_WIDTH
-    } else {
-        PAPER_NOTCH_WIDTH
-    };
     // No span resolves a harmonic without `near_harmonic`.
     let span_s = if adds.near_harmonic { span_s } else { 0.0 };
     // A bin must rise above the bins this far either side: its neighbours,
@@ -177,7 +167,7 @@ fn strongest_peak<S: Scalar>(
         let power = spectrum.power(k);
         power > spectrum.power(k.saturating_sub(d))
             && power > spectrum.power(k + d)
-            && !notched(p, known, lines, span_s, width)
+            && !notched(p, known, lines, span_s)
             && !commensurate(p, known, lines, span_s)
     })
 }
@@ -209,9 +199,6 @@ struct Octaves {
     /// The stage's period and the power of its own peak (0: none).
     own: f64,
     own_power: f64,
-    /// The stage's gate is not fully open, and a weak stage may move
-    /// where the energy is (`octave_move`).
-    weak: bool,
     /// The stage may move up to its fundamental (`fundamental_move`).
     fundamental: bool,
     worm_power: f64,
@@ -220,14 +207,11 @@ struct Octaves {
 }
 
 impl Octaves {
-    /// The peak the stage moves to, if any. Up to twice its period where
-    /// that line is the stage's fundamental: a line of its own (the
-    /// weakest amplitude ratio that opens a gate) with at least
+    /// The peak the stage moves to, if any: twice its period where that
+    /// line is the stage's fundamental, a line of its own (the weakest
+    /// amplitude ratio that opens a gate) with at least
     /// 1 / [`MOVE_POWER_RATIO`] of the stage's power, as C6's 155 s beside
-    /// its 77.5 s harmonic (C7's weak 155 s stays below); or, for a weak
-    /// stage, where the energy clearly is (C5, a PHD2 log's 45 s stage
-    /// on its way to 180 s). Down to half its period only for a weak stage
-    /// whose line is clearly weaker than that one.
+    /// its 77.5 s harmonic (C7's weak 155 s stays below).
     fn choose<S: Scalar>(
         &self,
         spectrum: &Spectrum<'_, S>,
@@ -236,21 +220,16 @@ impl Octaves {
         span_s: f64,
         adds: &Additions,
     ) -> Option<Peak> {
-        let movable = |p: f64| p >= self.range.0 && p <= self.range.1;
-        let octave = |p: f64| {
-            movable(p)
-                .then(|| peak_near(spectrum, p, known, lines, span_s, adds))
-                .flatten()
-        };
-        let up = octave(2.0 * self.own).filter(|r| {
-            let fundamental = self.fundamental
-                && r.power >= self.own_power / MOVE_POWER_RATIO
-                && r.power >= GATE_OFF * GATE_OFF * self.worm_power;
-            fundamental || (self.weak && r.power > MOVE_POWER_RATIO * self.own_power)
-        });
-        up.or_else(|| {
-            octave(0.5 * self.own)
-                .filter(|r| self.weak && r.power > MOVE_POWER_RATIO * self.own_power)
+        if !self.fundamental {
+            return None;
+        }
+        let up = 2.0 * self.own;
+        if up < self.range.0 || up > self.range.1 {
+            return None;
+        }
+        peak_near(spectrum, up, known, lines, span_s, adds).filter(|r| {
+            r.power >= self.own_power / MOVE_POWER_RATIO
+                && r.power >= GATE_OFF * GATE_OFF * self.worm_power
         })
     }
 }
@@ -399,7 +378,6 @@ impl<const N: usize> Discovery<N> {
                 let octaves = Octaves {
                     own,
                     own_power: peak.map_or(0.0, |p| p.power),
-                    weak: adds.octave_move && stage.ratio < GATE_FULL,
                     fundamental: adds.fundamental_move,
                     worm_power,
                     range: (band_lo, MOVE_MAX_WORM_PERIODS * trackers[0].period_s),
@@ -470,13 +448,15 @@ mod tests {
     #[test]
     fn notches_cover_harmonics_and_divisions() {
         let known = [432.0];
-        for p in [432.0, 864.0, 2160.0, 216.0, 144.0, 420.0, 150.0] {
-            assert!(notched(p, &known, &known, 0.0, NOTCH_WIDTH), "{p}");
+        // C5's second stage, 7 % from the worm's 144 s division, lies in the
+        // notch until the data resolves the two (`near_harmonic`).
+        for p in [432.0, 864.0, 2160.0, 216.0, 144.0, 420.0, 150.0, 155.0] {
+            assert!(notched(p, &known, &known, 0.0), "{p}");
         }
-        // C5's second stage, 7 % from the worm's 144 s division: the paper's
-        // 8 % notch hid it; ours is as wide as the commensurability guard.
-        for p in [380.0, 288.0, 155.0, 110.0, 108.0] {
-            assert!(!notched(p, &known, &known, 0.0, NOTCH_WIDTH), "{p}");
+        let beat = 1.0 / (1.0 / 144.0 - 1.0 / 155.0);
+        assert!(!notched(155.0, &known, &known, 1.1 * HARMONIC_BEATS * beat));
+        for p in [380.0, 288.0, 110.0, 108.0] {
+            assert!(!notched(p, &known, &known, 0.0), "{p}");
         }
     }
 
@@ -501,12 +481,10 @@ mod tests {
         let before = 0.9 * HARMONIC_BEATS * beat;
         let after = 1.1 * HARMONIC_BEATS * beat;
         assert!(
-            notched(period, &worm, &worm, before, NOTCH_WIDTH)
-                && commensurate(period, &worm, &worm, before)
+            notched(period, &worm, &worm, before) && commensurate(period, &worm, &worm, before)
         );
         assert!(
-            !notched(period, &worm, &worm, after, NOTCH_WIDTH)
-                && !commensurate(period, &worm, &worm, after)
+            !notched(period, &worm, &worm, after) && !commensurate(period, &worm, &worm, after)
         );
         // Near the third and fourth harmonics, either side.
         for (period, k) in [(139.8, 3.0), (151.6, 3.0), (105.9, 4.0), (112.5, 4.0)] {
@@ -514,10 +492,7 @@ mod tests {
             let before = 0.9 * HARMONIC_BEATS * beat;
             let after = 1.1 * HARMONIC_BEATS * beat;
             assert!(commensurate(period, &worm, &worm, before), "{period}");
-            assert!(
-                !notched(period, &worm, &worm, after, NOTCH_WIDTH),
-                "{period}"
-            );
+            assert!(!notched(period, &worm, &worm, after), "{period}");
             assert!(!commensurate(period, &worm, &worm, after), "{period}");
         }
         // A multiple of a known stage (a slower stage 3 % off twice a 110 s
@@ -546,7 +521,7 @@ mod tests {
             }
             for k in 2..=3 {
                 assert!(
-                    notched(432.0 / k as f64, &[432.0], &[432.0], span, NOTCH_WIDTH),
+                    notched(432.0 / k as f64, &[432.0], &[432.0], span),
                     "{k} {span}"
                 );
             }
@@ -556,13 +531,10 @@ mod tests {
             // A worm tracked 4 % long (300 s for 288 s) still bars its true
             // second harmonic, by its line in the spectrum.
             assert!(commensurate(144.0, &[300.0], &[288.0], span), "{span}");
-            assert!(
-                notched(144.0, &[300.0], &[288.0], span, NOTCH_WIDTH),
-                "{span}"
-            );
+            assert!(notched(144.0, &[300.0], &[288.0], span), "{span}");
             // The known period itself, and 5 % beside it, whatever the span.
             assert!(
-                notched(432.0, &[432.0], &[432.0], span, NOTCH_WIDTH)
+                notched(432.0, &[432.0], &[432.0], span)
                     && commensurate(432.0, &[432.0], &[432.0], span)
             );
             assert!(commensurate(411.4, &[432.0], &[432.0], span));
@@ -835,8 +807,8 @@ mod tests {
 
     #[test]
     fn without_local_maximum_the_skirt_of_a_notched_line_is_a_stage() {
-        // The worm tracked at 500 s notches its line's bins up to 43; the
-        // skirt falls on through 44 (465 s), resolved from the worm.
+        // The worm tracked at 500 s notches its line's bins up to 44; the
+        // skirt falls on through 45 (455 s), resolved from the worm.
         let mut buf = lines(&[]);
         for (k, power) in [(42, 2500.0), (43, 1500.0), (44, 1000.0), (45, 500.0)] {
             buf[k] = power;
@@ -846,23 +818,7 @@ mod tests {
         assert_eq!(found(&buf, trackers, 10240.0, &Additions::ALL), None);
         assert_eq!(
             found(&buf, trackers, 10240.0, &without("local_maximum")),
-            Some(bin_period(44.0))
-        );
-    }
-
-    #[test]
-    fn without_narrow_notch_the_papers_notch_hides_a_line() {
-        // 182.9 s lies 6.7 % from the worm's third division (170.7 s);
-        // 2,000 s of data do not resolve the two.
-        let buf = lines(&[(112, 2500.0)]);
-        let trackers = tracked([0.0; 2]);
-        assert_eq!(
-            found(&buf, trackers, 2000.0, &Additions::ALL),
-            Some(bin_period(112.0))
-        );
-        assert_eq!(
-            found(&buf, trackers, 2000.0, &without("narrow_notch")),
-            None
+            Some(bin_period(45.0))
         );
     }
 
@@ -936,19 +892,6 @@ mod tests {
         let mut trackers = tracked([0.0, bin_period(112.0)]);
         scan_scripted(&mut d, &mut trackers, buf, 10240.0, adds);
         (trackers[1].period_s, d.stages[1].peak_period_s)
-    }
-
-    #[test]
-    fn without_octave_move_a_weak_stage_stays_below_its_energy() {
-        // Its octave (365.7 s) has three times its power, too little to be
-        // a line of its own.
-        let buf = lines(&[(112, 50.0), (56, 150.0)]);
-        let (own, octave) = (bin_period(112.0), bin_period(56.0));
-        assert_eq!(followed(&buf, 0.0, &Additions::ALL), (octave, Some(octave)));
-        assert_eq!(
-            followed(&buf, 0.0, &without("octave_move")),
-            (own, Some(own))
-        );
     }
 
     #[test]
