@@ -46,7 +46,8 @@ pub const HARMONIC_BEATS: f64 = 1.5;
 /// A found stage moves up to twice its period where that line has at least
 /// 1 / this of its own power and would open a gate on its own (the stage's
 /// fundamental: a kernel of period 2P also represents P), only to periods
-/// below this many worm periods. Measured on C5-C8 and the PHD2 logs: see `docs/model.md`.
+/// below this many worm periods. Measured on C5-C8 and the PHD2 logs: see
+/// `docs/model.md`.
 pub const MOVE_POWER_RATIO: f64 = 2.0;
 pub const MOVE_MAX_WORM_PERIODS: f64 = 0.9;
 /// Evidence gate thresholds on the smoothed amplitude ratio.
