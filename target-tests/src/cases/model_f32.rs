@@ -146,12 +146,31 @@ pub fn spectrum_finds_the_period() -> TestResult {
     close_abs("period", line.period_s, 432.0, 2.0)
 }
 
-/// Frames every 2 s, t = 0 .. 2998 s; scored from 1200 s.
-const LOOP_FRAMES: usize = 1500;
+/// Frames every 2 s.
 const LOOP_DT: f64 = 2.0;
-const SCORE_FROM_S: f64 = 1200.0;
 
-/// Residual RMS over t >= [`SCORE_FROM_S`] of a noise-free closed loop on
+/// How long a closed loop runs, and from when it is scored.
+#[derive(Clone, Copy)]
+struct Run {
+    frames: usize,
+    score_from_s: f64,
+}
+
+/// t = 0 .. 2998 s; scored from 1200 s.
+const ONE_STAGE: Run = Run {
+    frames: 1500,
+    score_from_s: 1200.0,
+};
+/// t = 0 .. 5998 s, scored from 3600 s (the paper's table): C5's 155 s
+/// stage lies 7 % from the 432 s worm's 144 s division, inside its notch,
+/// and is admitted once the data spans 1.5 beats against it (3,044 s:
+/// `near_harmonic`).
+const TWO_STAGES: Run = Run {
+    frames: 3000,
+    score_from_s: 3600.0,
+};
+
+/// Residual RMS over the scored frames of a noise-free closed loop on
 /// `gear`, and the open loop's over the same frames (px).
 struct Scores {
     residual: f64,
@@ -163,15 +182,16 @@ struct Scores {
 /// full. An error (a control that is not finite) ends the run.
 fn closed_loop(
     gear: fn(f64) -> f64,
+    run: Run,
     mut control: impl FnMut(f64, f64) -> Result<f64, &'static str>,
 ) -> Result<Scores, &'static str> {
     let mut applied = 0.0f64;
     let (mut sum_sq, mut open_sq, mut n) = (0.0f64, 0.0f64, 0usize);
-    for k in 0..LOOP_FRAMES {
+    for k in 0..run.frames {
         let t = k as f64 * LOOP_DT;
         let g = gear(t);
         let residual = g - applied;
-        if t >= SCORE_FROM_S {
+        if t >= run.score_from_s {
             sum_sq += residual * residual;
             open_sq += g * g;
             n += 1;
@@ -188,8 +208,9 @@ fn closed_loop(
 fn guided<const N: usize>(
     guider: &mut Guider<f32, N>,
     gear: fn(f64) -> f64,
+    run: Run,
 ) -> Result<Scores, &'static str> {
-    let scores = closed_loop(gear, |t, input| {
+    let scores = closed_loop(gear, run, |t, input| {
         let control = guider.frame(t, input as f32, 10.0, LOOP_DT as f32);
         if !control.is_finite() {
             hprintln!("    control {} at {} s", control, t);
@@ -209,12 +230,12 @@ fn guided<const N: usize>(
 /// control = aggressiveness x ((1 - hysteresis) x input + hysteresis x
 /// previous control), 0 when |input| < min move (as host-tests'
 /// `controller::Hysteresis`), with the paper's 0.6 / 0.1 / 0.2.
-fn hysteresis(gear: fn(f64) -> f64) -> Result<Scores, &'static str> {
+fn hysteresis(gear: fn(f64) -> f64, run: Run) -> Result<Scores, &'static str> {
     const AGGRESSIVENESS: f64 = 0.6;
     const HYSTERESIS: f64 = 0.1;
     const MIN_MOVE_PX: f64 = 0.2;
     let mut previous = 0.0f64;
-    closed_loop(gear, |_, input| {
+    closed_loop(gear, run, |_, input| {
         previous = if abs(input) < MIN_MOVE_PX {
             0.0
         } else {
@@ -260,21 +281,21 @@ fn two_stage(t: f64) -> f64 {
 /// `Guider<f32, 1>` on C1, noise-free, 1,500 frames, against hysteresis.
 pub fn closed_loop_n1() -> TestResult {
     let guider = GUIDER_1.init(Guider::new(GuiderConfig::default()));
-    let model = guided(guider, c1)?;
+    let model = guided(guider, c1, ONE_STAGE)?;
     hprintln!("    period {} s", guider.period_s(0));
-    score(&model, &hysteresis(c1)?, 0.58)
+    score(&model, &hysteresis(c1, ONE_STAGE)?, 0.58)
 }
 
-/// `Guider<f32, 2>` on the two-stage signal, noise-free, 1,500 frames,
+/// `Guider<f32, 2>` on the two-stage signal, noise-free, 3,000 frames,
 /// against hysteresis.
 pub fn closed_loop_n2() -> TestResult {
     let guider = GUIDER_2.init(Guider::new(GuiderConfig::default()));
-    let model = guided(guider, two_stage)?;
+    let model = guided(guider, two_stage, TWO_STAGES)?;
     hprintln!(
         "    periods {} s, {} s (gate {})",
         guider.period_s(0),
         guider.period_s(1),
         guider.gate(1)
     );
-    score(&model, &hysteresis(two_stage)?, 0.40)
+    score(&model, &hysteresis(two_stage, TWO_STAGES)?, 0.40)
 }
