@@ -73,7 +73,7 @@ const BUDGET_STATE_BYTES: usize = 64 * 1024;
 /// and the restored model guides this many frames (two worm periods: past
 /// the phase search and the stages' refine, half a worm period each).
 const SAVED_AT_S: f64 = FRAMES as f64 * DT;
-const TURNED_S: f64 = 3.0 * 288.0;
+const TURNED_S: f64 = 3.0 * C8[0].0;
 const RESTORED_FRAMES: usize = 300;
 /// The most instructions any frame after a restore may take: one 2 s
 /// guide cycle (1 s exposures and their download) at the F411's 96 MHz
