@@ -152,6 +152,12 @@ additions! {
     /// counts as 200 frames, no more (`model::guider::trust`). Off: the new
     /// model inherits the old one's whole score.
     trust_rescore: Model,
+    /// The guider: the trust's windows (its score, the frames before the
+    /// weight or the law may move) last no longer than at 2 s frames;
+    /// behind longer frames their counts are cut in proportion
+    /// (`model::guider::trust`). Off: the same counts whatever the frames'
+    /// length.
+    trust_by_time: Model,
     /// The guider: the mount's feed-forward reads the model the grid's lag
     /// later, where the gear error's own time lies
     /// (`GuiderConfig::prediction_at_gear_time`, `Grid::lag_s`). Off: at

@@ -401,6 +401,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
                 gear,
                 &law.to_f64(),
                 prediction.map(|p| (p.to_f64(), self.blend)),
+                Self::sanitize_step(time_step),
                 &self.config.additions,
             );
             self.blend *= weight;

@@ -55,6 +55,15 @@ const MARGIN: f64 = 0.001;
 /// a fraction of the noise, so their comparison needs more frames than the
 /// model's (with 200, PHD2 log 03 switched on too few and lost 0.2 %).
 const LAW_MIN_SCORED: f64 = 400.0;
+/// The frame interval the counts above are for, s. A window lasts no
+/// longer than it does at this interval: behind longer frames the gear
+/// moves on further within it (a stage that fades, a model gone wrong),
+/// and the count is cut in proportion. Shorter frames keep the count, the
+/// comparison's statistics.
+const COUNTED_FRAME_S: f64 = 2.0;
+/// Frames the measured frame interval averages over: a gap (a download, a
+/// lost star) moves it by a fraction of its length over this.
+const INTERVAL_FRAMES: f64 = 32.0;
 /// The proportional shadow must beat the hysteretic one by this fraction of
 /// its mean square before the guider switches to it.
 const LAW_MARGIN: f64 = 0.01;
@@ -92,9 +101,10 @@ impl Shadow {
 struct MeanSquare(f64);
 
 impl MeanSquare {
-    /// Add a measurement, the `frames`th scored.
-    fn add(&mut self, input: f64, frames: f64) {
-        self.0 += (input * input - self.0) / frames.min(SCORE_FRAMES);
+    /// Add a measurement, the `frames`th scored, over a window of
+    /// `window` frames.
+    fn add(&mut self, input: f64, frames: f64, window: f64) {
+        self.0 += (input * input - self.0) / frames.min(window);
     }
 }
 
@@ -124,6 +134,9 @@ pub(super) struct Trust {
     reactive_scores: [MeanSquare; 2],
     scored: f64,
     weight: f64,
+    /// The frame interval the windows are counted in, s (0: none measured
+    /// yet).
+    frame_s: f64,
 }
 
 impl Trust {
@@ -140,15 +153,20 @@ impl Trust {
     /// A frame with a measurement: `gear` is the reconstructed gear error
     /// (the guider's controls so far plus its measurement), `prediction`
     /// the model's prediction and the reference blend, if the model was
-    /// consulted. Returns the weight for this frame's control: 1 without
-    /// the addition `trust_shadows` (the shadows still run, for the law).
+    /// consulted; `time_step` the time to the next frame, s (0: unknown).
+    /// Returns the weight for this frame's control: 1 without the addition
+    /// `trust_shadows` (the shadows still run, for the law).
     pub fn measured(
         &mut self,
         gear: f64,
         law: &Law<f64>,
         prediction: Option<(f64, f64)>,
+        time_step: f64,
         adds: &Additions,
     ) -> f64 {
+        if adds.trust_by_time {
+            self.measure_interval(time_step);
+        }
         let hysteretic = Law {
             hysteresis: HYSTERESIS,
             ..*law
@@ -170,6 +188,7 @@ impl Trust {
         } else {
             *self = Self {
                 weight: 0.0,
+                frame_s: self.frame_s,
                 ..Self::default()
             };
         }
@@ -182,14 +201,13 @@ impl Trust {
 
     /// The model's stages changed: what was scored measured another model,
     /// and counts from now on as [`MIN_SCORED`] frames, no more (the new
-    /// model's frames weigh a 200th at first, not a 1000th). Nothing is
-    /// held: a model whose new stages are worse loses its old lead within
-    /// about as many frames. Starting the score afresh held the weight for
+    /// model's frames weigh a 200th at first, not a 1000th). Nothing is held: a model whose new stages are worse loses
+    /// its old lead within about as many frames. Starting the score afresh held the weight for
     /// those frames, and cost the short PHD2 logs (02: 0.26 -> 0.17 %).
     /// Without the addition `trust_rescore` the old score stands.
     pub fn stages_changed(&mut self, adds: &Additions) {
         if adds.trust_rescore {
-            self.scored = self.scored.min(MIN_SCORED);
+            self.scored = self.scored.min(self.frames(MIN_SCORED));
         }
     }
 
@@ -198,11 +216,12 @@ impl Trust {
     /// the guider may choose it (`law_choice`), else the hysteresis.
     fn move_weight(&mut self, model: f64, reactive: [f64; 2], law_choice: bool) {
         self.scored += 1.0;
-        self.model_score.add(model, self.scored);
+        let window = self.frames(SCORE_FRAMES);
+        self.model_score.add(model, self.scored, window);
         for (score, r) in self.reactive_scores.iter_mut().zip(reactive) {
-            score.add(r, self.scored);
+            score.add(r, self.scored, window);
         }
-        if self.scored < MIN_SCORED {
+        if self.scored < self.frames(MIN_SCORED) {
             return;
         }
         let [h, p] = self.reactive_scores.map(|s| s.0);
@@ -216,14 +235,39 @@ impl Trust {
         self.weight = self.weight.clamp(0.0, 1.0);
     }
 
+    /// Follow the frame interval: the first time step sets it, later ones
+    /// move it by a share of [`INTERVAL_FRAMES`].
+    fn measure_interval(&mut self, time_step: f64) {
+        if !(time_step.is_finite() && time_step > 0.0) {
+            return;
+        }
+        if self.frame_s > 0.0 {
+            self.frame_s += (time_step - self.frame_s) / INTERVAL_FRAMES;
+        } else {
+            self.frame_s = time_step;
+        }
+    }
+
+    /// A count of frames at [`COUNTED_FRAME_S`], cut in proportion where
+    /// the measured frames are longer (none measured without the addition
+    /// `trust_by_time`).
+    fn frames(&self, count: f64) -> f64 {
+        if self.frame_s > COUNTED_FRAME_S {
+            count * COUNTED_FRAME_S / self.frame_s
+        } else {
+            count
+        }
+    }
+
     /// Score the two reactive laws' measurements and switch the law when
     /// one is measured better.
     fn choose_law(&mut self, reactive: [f64; 2]) {
         self.law_scored += 1.0;
+        let window = self.frames(SCORE_FRAMES);
         for (score, r) in self.law_scores.iter_mut().zip(reactive) {
-            score.add(r, self.law_scored);
+            score.add(r, self.law_scored, window);
         }
-        if self.law_scored < LAW_MIN_SCORED {
+        if self.law_scored < self.frames(LAW_MIN_SCORED) {
             return;
         }
         let [h, p] = self.law_scores.map(|s| s.0);
@@ -272,6 +316,10 @@ mod tests {
         hysteresis: HYSTERESIS,
     };
 
+    const FRAME_S: f64 = COUNTED_FRAME_S;
+    const MIN_SCORED: usize = super::MIN_SCORED as usize;
+    const LAW_MIN_SCORED: usize = super::LAW_MIN_SCORED as usize;
+
     fn without(name: &str) -> Additions {
         let mut adds = Additions::ALL;
         adds.set(name, false).unwrap();
@@ -288,11 +336,46 @@ mod tests {
             (without("trust_shadows"), 1.0),
         ] {
             let mut trust = Trust::new();
-            let weights: [f64; MIN_SCORED as usize] =
-                core::array::from_fn(|_| trust.measured(0.0, &LAW, Some((2.0, 1.0)), &adds));
+            let weights: [f64; MIN_SCORED] = core::array::from_fn(|_| {
+                trust.measured(0.0, &LAW, Some((2.0, 1.0)), FRAME_S, &adds)
+            });
             assert!(weights[..weights.len() - 1].iter().all(|&w| w == 1.0));
             assert_eq!(weights[weights.len() - 1], last);
         }
+    }
+
+    /// Frames until the weight first moves, as above, at frames of
+    /// `time_step(k)` s, with the additions `adds`.
+    fn frames_to_move(adds: &Additions, time_step: impl Fn(usize) -> f64) -> Option<usize> {
+        let mut trust = Trust::new();
+        (0..2 * MIN_SCORED)
+            .position(|k| trust.measured(0.0, &LAW, Some((2.0, 1.0)), time_step(k), adds) < 1.0)
+            .map(|n| n + 1)
+    }
+
+    #[test]
+    fn behind_longer_frames_the_weight_waits_fewer() {
+        // Twice the counted interval (a time step of 0, unknown, keeps the
+        // interval measured): half the frames, the same time.
+        let twice = |k: usize| {
+            if k.is_multiple_of(2) {
+                2.0 * FRAME_S
+            } else {
+                0.0
+            }
+        };
+        assert_eq!(frames_to_move(&Additions::ALL, twice), Some(MIN_SCORED / 2));
+        // Shorter frames keep the count.
+        assert_eq!(
+            frames_to_move(&Additions::ALL, |_| 0.5 * FRAME_S),
+            Some(MIN_SCORED)
+        );
+        // Without `trust_by_time` longer frames keep it too.
+        let longer = |_| 4.0 * FRAME_S;
+        assert_eq!(
+            frames_to_move(&without("trust_by_time"), longer),
+            Some(MIN_SCORED)
+        );
     }
 
     /// Frames of a faded stage until the weight first falls: a sine of 2 px
@@ -310,12 +393,15 @@ mod tests {
         let mut trust = Trust::new();
         for k in 0..3000 {
             let gear = sine(k) + noise();
-            trust.measured(gear, &LAW, Some((predicted(k), 1.0)), adds);
+            trust.measured(gear, &LAW, Some((predicted(k), 1.0)), FRAME_S, adds);
         }
         assert_eq!(trust.weight, 1.0);
         trust.stages_changed(adds);
         (3000..20_000)
-            .position(|k| trust.measured(noise(), &LAW, Some((predicted(k), 1.0)), adds) < 1.0)
+            .position(|k| {
+                let prediction = Some((predicted(k), 1.0));
+                trust.measured(noise(), &LAW, prediction, FRAME_S, adds) < 1.0
+            })
             .map_or(usize::MAX, |n| n + 1)
     }
 
@@ -324,10 +410,10 @@ mod tests {
         // What was scored counts as MIN_SCORED frames: the new model's
         // loss outweighs the old lead within about as many.
         let with = frames_to_fall(&Additions::ALL);
-        assert!(with < MIN_SCORED as usize, "{with}");
+        assert!(with < MIN_SCORED, "{with}");
         // Without `trust_rescore` the old lead fades over the whole window.
         let without = frames_to_fall(&without("trust_rescore"));
-        assert!(without > 2 * MIN_SCORED as usize, "{without}");
+        assert!(without > 2 * MIN_SCORED, "{without}");
     }
 
     #[test]
@@ -337,8 +423,8 @@ mod tests {
         // than proportional control (mean squares 0.75 and 0.69 px²).
         for (adds, hysteresis) in [(Additions::ALL, 0.0), (without("law_choice"), HYSTERESIS)] {
             let mut trust = Trust::new();
-            for k in 0..LAW_MIN_SCORED as usize {
-                trust.measured(0.5 * k as f64, &LAW, None, &adds);
+            for k in 0..LAW_MIN_SCORED {
+                trust.measured(0.5 * k as f64, &LAW, None, FRAME_S, &adds);
             }
             assert_eq!(trust.hysteresis(&adds), hysteresis);
         }
