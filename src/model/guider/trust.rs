@@ -201,8 +201,9 @@ impl Trust {
 
     /// The model's stages changed: what was scored measured another model,
     /// and counts from now on as [`MIN_SCORED`] frames, no more (the new
-    /// model's frames weigh a 200th at first, not a 1000th). Nothing is held: a model whose new stages are worse loses
-    /// its old lead within about as many frames. Starting the score afresh held the weight for
+    /// model's frames weigh a 200th at first, not a 1000th). Nothing is
+    /// held: a model whose new stages are worse loses its old lead within
+    /// about as many frames. Starting the score afresh held the weight for
     /// those frames, and cost the short PHD2 logs (02: 0.26 -> 0.17 %).
     /// Without the addition `trust_rescore` the old score stands.
     pub fn stages_changed(&mut self, adds: &Additions) {
