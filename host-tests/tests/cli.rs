@@ -210,7 +210,7 @@ fn replay_per_section_prints_each_section_then_the_log() {
     // Without --csv, the goals follow each log.
     let o = guide_sim(&["replay", one.to_str().unwrap(), "--per-section"]);
     assert!(
-        stdout(&o).contains("goals: MKGP gain 12.26 %"),
+        stdout(&o).contains("goals: MKGP gain 12.32 %"),
         "{}",
         stdout(&o)
     );
