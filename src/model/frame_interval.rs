@@ -28,7 +28,7 @@ impl FrameInterval {
     pub const UNMEASURED: FrameInterval = FrameInterval { frame_s: 0.0 };
 
     /// Follow the frame interval: the first time step sets it, later ones
-    /// move it by a share of [`INTERVAL_FRAMES`]. A step that is not finite
+    /// move it by a share of `INTERVAL_FRAMES`. A step that is not finite
     /// and positive (unknown) is skipped; a longer one than any the guider
     /// predicts over counts as that.
     pub fn measure(&mut self, time_step: f64) {
