@@ -83,12 +83,6 @@ additions! {
     /// a shadow of the guider alone (`mount::guiding::feed_forward_weight`).
     /// Off: the feed-forward in full.
     feed_forward_weight: Firmware,
-    /// The learner: the feed-forward weight's windows (its means, the
-    /// frames before it moves) last no longer than at 2 s frames; behind
-    /// longer frames their counts are cut in proportion
-    /// (`model::frame_interval`). Off: the same counts whatever the frames'
-    /// length.
-    weight_by_time: Firmware,
     /// The learner: the share and the pulse weight are saved with the
     /// model and taken back with it. Off: a restored learner starts with
     /// every pulse in full, to earn them again.
@@ -280,7 +274,6 @@ mod tests {
             "earned_share",
             "feed_forward_horizon",
             "feed_forward_weight",
-            "weight_by_time",
             "calibration_watch",
             "calibration_share",
             "grid_lag",

@@ -9,7 +9,6 @@
 //! everything added around the paper's model.
 
 pub mod additions;
-pub mod frame_interval;
 pub mod gp;
 pub mod guider;
 pub(crate) mod in_place;

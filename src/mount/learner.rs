@@ -414,7 +414,6 @@ impl<const N: usize> Learner<N> {
                 frame.applied_arcsec - level as f32,
                 self.guider.config().control_gain,
                 self.guider.blend_weight() > 0.0 && pulses_in_full,
-                Some(d).filter(|_| adds.weight_by_time),
             ),
             None => self.feed_forward_weight.interrupt(),
         }

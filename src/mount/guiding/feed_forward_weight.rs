@@ -21,15 +21,12 @@
 //! is none: the feed-forward is switched off and stays off (the guider
 //! alone is the safe outcome) until a model reset or restore measures again.
 
-use crate::model::frame_interval::FrameInterval;
 use crate::model::numeric::clamp;
 
-/// Frames the running means average over (about 30 minutes at 2 s frames;
-/// behind longer frames cut in proportion, `weight_by_time`).
-const WINDOW_FRAMES: f64 = 1000.0;
-/// Frames with a feed-forward scored before the weight moves (at 2 s, as
-/// above).
-const MIN_SCORED: f64 = 200.0;
+/// Frames the running means average over (about 30 minutes at 2 s).
+const WINDOW_FRAMES: f32 = 1000.0;
+/// Frames with a feed-forward scored before the weight moves.
+const MIN_SCORED: f32 = 200.0;
 /// The gain in mean square, as a fraction of the guider alone's, below
 /// which the feed-forward stays in full: the shadow, a proportional loop,
 /// measures a guider with hysteresis and a min move a little better than it
@@ -53,8 +50,6 @@ pub struct FeedForwardWeight {
     power: f32,
     shadow_square: f32,
     scored: f32,
-    /// The frame interval the counts are in.
-    interval: FrameInterval,
     /// Where the weight moves: the best share last measured.
     target: f32,
     weight: f32,
@@ -68,7 +63,6 @@ impl FeedForwardWeight {
         power: 0.0,
         shadow_square: 0.0,
         scored: 0.0,
-        interval: FrameInterval::UNMEASURED,
         target: 1.0,
         weight: 1.0,
     };
@@ -83,7 +77,6 @@ impl FeedForwardWeight {
     pub fn remeasure(&mut self) {
         *self = FeedForwardWeight {
             shadow_applied: self.shadow_applied,
-            interval: self.interval,
             ..Self::FULL
         };
     }
@@ -98,22 +91,8 @@ impl FeedForwardWeight {
     /// A measured guide frame: `gear` the reconstructed gear error, `applied`
     /// the firmware's correction (so the guider measured `gear - applied`),
     /// `gain` the guider's assumed aggressiveness, `feeding` whether a
-    /// feed-forward was in effect, `interval_s` the time since the last
-    /// frame where the counts follow the frame interval (None: they are
-    /// kept, and so is the interval). Moves the weight.
-    pub fn measured(
-        &mut self,
-        gear: f32,
-        applied: f32,
-        gain: f32,
-        feeding: bool,
-        interval_s: Option<f64>,
-    ) {
-        if let Some(step) = interval_s {
-            self.interval.measure(step);
-        }
-        let window = self.interval.frames(WINDOW_FRAMES) as f32;
-        let min_scored = self.interval.frames(MIN_SCORED) as f32;
+    /// feed-forward was in effect. Moves the weight.
+    pub fn measured(&mut self, gear: f32, applied: f32, gain: f32, feeding: bool) {
         let shadow = *self.shadow_applied.get_or_insert(applied);
         let (e, e_a) = (gear - applied, gear - shadow);
         if !(e.is_finite() && e_a.is_finite() && gain.is_finite()) {
@@ -127,11 +106,11 @@ impl FeedForwardWeight {
         if self.weight >= PROBE {
             let h = (e_a - e) / self.weight;
             self.scored += 1.0;
-            let n = self.scored.min(window);
+            let n = self.scored.min(WINDOW_FRAMES);
             self.cross += (e_a * h - self.cross) / n;
             self.power += (h * h - self.power) / n;
             self.shadow_square += (e_a * e_a - self.shadow_square) / n;
-            if self.scored >= min_scored && self.power > 0.0 {
+            if self.scored >= MIN_SCORED && self.power > 0.0 {
                 // A share below the probe cannot be measured: none. Less
                 // than the feed-forward in full only where that gains more
                 // than the shadow's own error.
@@ -146,7 +125,7 @@ impl FeedForwardWeight {
                 };
             }
         }
-        if self.scored >= min_scored {
+        if self.scored >= MIN_SCORED {
             self.weight = clamp(self.target, self.weight - STEP, self.weight + STEP);
         }
     }
@@ -169,7 +148,7 @@ mod tests {
         let mut applied = 0.0;
         for k in 0..frames {
             let g = gear(k);
-            fw.measured(g, applied, gain, true, Some(2.0));
+            fw.measured(g, applied, gain, true);
             let e = g - applied;
             applied += gain * e + fw.weight() * ff(k);
         }
@@ -217,11 +196,11 @@ mod tests {
     fn nothing_moves_before_the_scored_frames_or_without_a_feed_forward() {
         let mut fw = FeedForwardWeight::FULL;
         for k in 0..(MIN_SCORED as usize - 1) {
-            fw.measured(0.0, if k % 2 == 0 { 1.0 } else { -1.0 }, 0.7, true, None);
+            fw.measured(0.0, if k % 2 == 0 { 1.0 } else { -1.0 }, 0.7, true);
         }
         assert_eq!(fw.weight(), 1.0);
         for _ in 0..1000 {
-            fw.measured(5.0, -5.0, 0.7, false, None);
+            fw.measured(5.0, -5.0, 0.7, false);
         }
         assert_eq!(fw.weight(), 1.0);
     }
@@ -229,32 +208,8 @@ mod tests {
     #[test]
     fn bad_input_restarts_the_shadow_and_leaves_the_weight() {
         let mut fw = FeedForwardWeight::FULL;
-        fw.measured(f32::NAN, 0.0, 0.7, true, None);
-        fw.measured(1.0, f32::INFINITY, 0.7, true, None);
+        fw.measured(f32::NAN, 0.0, 0.7, true);
+        fw.measured(1.0, f32::INFINITY, 0.7, true);
         assert_eq!(fw, FeedForwardWeight::FULL);
-    }
-
-    /// Frames of a feed-forward of noise (as above) until its weight first
-    /// falls, at frames `interval_s` apart.
-    fn frames_to_fall(interval_s: Option<f64>) -> Option<usize> {
-        let mut fw = FeedForwardWeight::FULL;
-        (0..1000)
-            .position(|k| {
-                let applied = if k % 2 == 0 { 1.0 } else { -1.0 };
-                fw.measured(0.0, applied, 0.7, true, interval_s);
-                fw.weight() < 1.0
-            })
-            .map(|n| n + 1)
-    }
-
-    #[test]
-    fn behind_longer_frames_the_weight_waits_fewer() {
-        let min_scored = MIN_SCORED as usize;
-        // Twice the counted interval: half the frames, the same time.
-        assert_eq!(frames_to_fall(Some(4.0)), Some(min_scored / 2));
-        // Shorter frames keep the count; so do longer ones without the
-        // addition `weight_by_time` (no interval given).
-        assert_eq!(frames_to_fall(Some(1.0)), Some(min_scored));
-        assert_eq!(frames_to_fall(None), Some(min_scored));
     }
 }
