@@ -207,6 +207,12 @@ additions! {
     /// placed at the worm's phase, the other stages left out of the fit
     /// until a search of the whole at that phase, a quarter worm period on.
     stage_phases: Restore,
+    /// The restore: the stages' shares taken out of the saved data are
+    /// fitted with the newest cells weighing most, as the shortest fitted
+    /// stage's envelope weighs them (`restore::harmonics`): a stage that
+    /// faded over the saved span is put back as it was last. Off: every
+    /// saved cell alike, each stage at its mean over the span.
+    recent_shares: Restore,
     /// The restore: once the stages are put back (at the phases the first
     /// search finds), their phases are searched again over all the new
     /// data at each new cell, up to half a worm period of it, and each
@@ -285,6 +291,7 @@ mod tests {
             "placement_search",
             "phase_search",
             "stage_phases",
+            "recent_shares",
             "phase_refine",
             "level_match",
             "saved_share",

@@ -407,7 +407,14 @@ impl<const N: usize> Restore<N> {
             // frame (no gap), the worm's share moved to its phase there;
             // the other stages' phases are found by the search.
             let apart = if self.adds.stage_phases {
-                take_out_stages(grid, scratch, stages, saved, at - end)
+                take_out_stages(
+                    grid,
+                    scratch,
+                    stages,
+                    saved,
+                    at - end,
+                    self.adds.recent_shares,
+                )
             } else {
                 None
             };
@@ -726,7 +733,8 @@ impl<S: Scalar, const N: usize> Fit<'_, S, N> {
 }
 
 /// Fit the stages' shares of the restored cells (held `..saved` in
-/// `grid`), move the worm's by `worm_shift` s (its share at `t` becomes
+/// `grid`; the newest weighing most with `recent`), move the worm's by
+/// `worm_shift` s (its share at `t` becomes
 /// what it was at `t + worm_shift`) and take every other stage's out;
 /// `None` (nothing changed) if the fit fails or no stage but the worm
 /// could be fitted.
@@ -736,6 +744,7 @@ fn take_out_stages<S: Scalar, const N: usize>(
     stages: Stages<'_, N>,
     saved: usize,
     worm_shift: f64,
+    recent: bool,
 ) -> Option<Harmonics<N>> {
     let first = grid.cell_time(0);
     let span = grid.cell_time(saved.checked_sub(1)?) - first;
@@ -744,7 +753,7 @@ fn take_out_stages<S: Scalar, const N: usize>(
         let (g, v) = grid.cell(i);
         (v.to_f64() < UNMEASURED_VARIANCE).then(|| g.to_f64())
     });
-    let fitted = Harmonics::fit(cells, first, span, &periods, stages.gates)?;
+    let fitted = Harmonics::fit(cells, first, span, &periods, stages.gates, recent)?;
     if !(1..N).any(|s| fitted.has_stage(s)) {
         return None;
     }

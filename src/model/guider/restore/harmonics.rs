@@ -7,7 +7,8 @@
 //! each stage's part is taken out of the saved cells and put back at the
 //! phase the new data shows. That part is a sum of harmonics of the
 //! stage's period, fitted to the saved cells by least squares together
-//! with the worm's harmonics, a level and a slope: over the 83 min saved
+//! with the worm's harmonics, a level and a slope (the newest cells
+//! weighing most, `recent_shares`: [`Harmonics::fit`]): over the 83 min saved
 //! (11 worm periods) the stages' harmonics are nearly orthogonal, and a
 //! harmonic that falls on an earlier stage's (C3's 144 s: the worm's third
 //! and the 288 s stage's second) is left to that stage.
@@ -15,6 +16,7 @@
 use core::f64::consts::TAU;
 
 use crate::model::gp::grid::CELL_S;
+use crate::model::gp::kernel::ENVELOPE_PERIODS;
 use crate::model::ldlt::Ldlt;
 use crate::model::numeric::cos_sin::cos_sin;
 
@@ -195,16 +197,33 @@ fn share(coeffs: &[[f64; 2]; HARMONICS], cos: f64, sin: f64) -> f64 {
 impl<const N: usize> Harmonics<N> {
     /// Fit to `cells`, the gear error of consecutive cells from the one
     /// centred at grid time `first` (`None`: not measured), which span
-    /// `span` s. `None` if they do not determine the fit (too few
-    /// measured, or the normal equations do not factor).
+    /// `span` s. With `recent`, each cell weighs as the envelope of the
+    /// shortest stage fitted (the worm has none) weighs it for the time
+    /// right after the newest: the shares are put back where the model
+    /// predicts from them, and a stage that faded or grew over the saved
+    /// span is put back as it was last, not at its mean. `None` if they do
+    /// not determine the fit (too few measured, or the normal equations do
+    /// not factor).
     pub(super) fn fit(
         cells: impl Iterator<Item = Option<f64>>,
         first: f64,
         span: f64,
         periods: &[f64; N],
         gates: &[f64; N],
+        recent: bool,
     ) -> Option<Self> {
         let fitted = fitted(periods, gates, span);
+        // -1 / (2 (λ P)²) of the shortest fitted stage's envelope; 0 (all
+        // alike) without one.
+        let envelope_coeff = if recent {
+            (1..N)
+                .filter(|&s| fitted[s][0])
+                .map(|s| -0.5 / libm::pow(ENVELOPE_PERIODS * periods[s], 2.0))
+                .fold(0.0, f64::min)
+        } else {
+            0.0
+        };
+        let newest = first + span;
         let terms = 2 + 2 * fitted.iter().flatten().filter(|&&f| f).count();
         let mut h = Self {
             periods: *periods,
@@ -222,10 +241,11 @@ impl<const N: usize> Harmonics<N> {
             let Some(y) = y else { continue };
             let t = first + CELL_S * k as f64;
             let x = basis((t - h.t_ref) / half_span, &phasors, &fitted);
+            let w = libm::exp(envelope_coeff * (newest - t) * (newest - t));
             for (i, (&xi, b)) in x.iter().zip(&mut rhs).take(terms).enumerate() {
-                *b += xi * y;
+                *b += w * xi * y;
                 for (a, &xj) in normal.row_mut(i).iter_mut().zip(&x) {
-                    *a += xi * xj;
+                    *a += w * xi * xj;
                 }
             }
             count += 1;
@@ -415,7 +435,7 @@ mod tests {
 
     fn fit(periods: [f64; 2]) -> Option<Harmonics<2>> {
         let gear = |t: f64| 3.0 + 1e-3 * t + worm(t) + stage(t);
-        Harmonics::fit(cells(gear), -2.5, 4995.0, &periods, &[1.0, 1.0])
+        Harmonics::fit(cells(gear), -2.5, 4995.0, &periods, &[1.0, 1.0], true)
     }
 
     #[test]
@@ -427,6 +447,41 @@ mod tests {
             assert!((h.stage(1, t) - stage(t)).abs() < 1e-6, "stage at {t}");
             assert!((h.trend(t) - 3.0 - 1e-3 * t).abs() < 1e-6, "trend at {t}");
         }
+    }
+
+    /// The peak of stage 1's share in `h` over one period around `t`.
+    fn peak_near(h: &Harmonics<2>, t: f64) -> f64 {
+        (0..155)
+            .map(|j| h.stage(1, t - j as f64).abs())
+            .fold(0.0, f64::max)
+    }
+
+    #[test]
+    fn a_stage_that_faded_is_taken_as_the_envelope_weighs_it_and_without_recent_shares_at_its_mean()
+    {
+        // The 155 s stage fades to a fifth of itself over the saved span.
+        let amplitude = |t: f64| 1.0 - 0.8 * (t + 2.5) / 5000.0;
+        let fading = |t: f64| worm(t) + amplitude(t) * stage(t);
+        let share_at_end = |recent| {
+            let periods = [432.0, 155.0];
+            let h = Harmonics::fit(cells(fading), -2.5, 4995.0, &periods, &[1.0, 1.0], recent);
+            peak_near(&h.unwrap(), 4995.0) / peak_near(&fit(periods).unwrap(), 4995.0)
+        };
+        // The amplitude as the stage's envelope (20 periods) weighs the
+        // cells from the newest: 0.52; their mean 0.6; the last 0.2.
+        let weighed = (0..1000).map(|i| {
+            let age = 5.0 * (999 - i) as f64;
+            let w = libm::exp(-0.5 * age * age / (20.0 * 155.0f64).powi(2));
+            (w * amplitude(5.0 * i as f64 - 2.5), w)
+        });
+        let (sum, weights) = weighed.fold((0.0, 0.0), |(s, n), (x, w)| (s + x, n + w));
+        let (recent, mean) = (share_at_end(true), share_at_end(false));
+        assert!(
+            (recent - sum / weights).abs() < 0.005,
+            "{recent} {}",
+            sum / weights
+        );
+        assert!((mean - 0.6).abs() < 0.005, "{mean}");
     }
 
     #[test]
