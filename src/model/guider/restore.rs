@@ -734,10 +734,9 @@ impl<S: Scalar, const N: usize> Fit<'_, S, N> {
 
 /// Fit the stages' shares of the restored cells (held `..saved` in
 /// `grid`; the newest weighing most with `recent`), move the worm's by
-/// `worm_shift` s (its share at `t` becomes
-/// what it was at `t + worm_shift`) and take every other stage's out;
-/// `None` (nothing changed) if the fit fails or no stage but the worm
-/// could be fitted.
+/// `worm_shift` s (its share at `t` becomes what it was at `t +
+/// worm_shift`) and take every other stage's out; `None` (nothing
+/// changed) if the fit fails or no stage but the worm could be fitted.
 fn take_out_stages<S: Scalar, const N: usize>(
     grid: &mut Grid<S>,
     scratch: &mut [S; FFT_LEN],

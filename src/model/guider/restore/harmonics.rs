@@ -218,7 +218,10 @@ impl<const N: usize> Harmonics<N> {
         let envelope_coeff = if recent {
             (1..N)
                 .filter(|&s| fitted[s][0])
-                .map(|s| -0.5 / libm::pow(ENVELOPE_PERIODS * periods[s], 2.0))
+                .map(|s| {
+                    let length = ENVELOPE_PERIODS * periods[s];
+                    -0.5 / (length * length)
+                })
                 .fold(0.0, f64::min)
         } else {
             0.0
