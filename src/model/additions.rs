@@ -97,6 +97,12 @@ additions! {
     /// (`mount::guiding::earned_share`). Off: two of them in a row bring
     /// full pulses, and the share is earned again after each calibration.
     calibration_share: Firmware,
+    /// The learner: where the guide frames after a calibration come more
+    /// than 1.5 times as far apart as before it, the share earned before
+    /// is scaled by the square root of the intervals' ratio and earned on
+    /// from there (`mount::guiding::earned_share`). Off: full pulses, the
+    /// share earned again.
+    share_to_interval: Firmware,
     /// The model: an inference's subset leaves out the cells without a
     /// measurement (a re-pointing's gap, clouds, a calibration), which the
     /// short kernels rank high near the frame though they carry nothing
@@ -282,6 +288,7 @@ mod tests {
             "feed_forward_weight",
             "calibration_watch",
             "calibration_share",
+            "share_to_interval",
             "grid_lag",
             "configured_worm",
             "observed_envelope",

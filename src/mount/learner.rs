@@ -20,7 +20,7 @@ use crate::model::snapshot::{
 use crate::mount::config::Mount;
 use crate::mount::frame::{FeedForward, Frame, FrameKind, PulseShare};
 use crate::mount::guiding::bump::{self, Bump};
-use crate::mount::guiding::earned_share::{EarnedShare, SavedShare, SAVED_LEN};
+use crate::mount::guiding::earned_share::{EarnedShare, LongerFrames, SavedShare, SAVED_LEN};
 use crate::mount::guiding::feed_forward_weight::FeedForwardWeight;
 use crate::mount::guiding::pulse_weight::PulseWeight;
 
@@ -425,7 +425,11 @@ impl<const N: usize> Learner<N> {
         // (dithers, settling, silence) are carried out in full.
         let pulse = sane.filter(|_| !settling).map(|_| frame.pulse_arcsec);
         if frame.kind == FrameKind::Calibration && adds.calibration_share {
-            self.share.calibrating();
+            self.share.calibrating(if adds.share_to_interval {
+                LongerFrames::Scale
+            } else {
+                LongerFrames::EarnAgain
+            });
         }
         let earned = self
             .share
@@ -646,6 +650,40 @@ mod tests {
         // Off: full pulses, less what the one plain pulse after earned.
         let (_, off) = share_after_calibration(false);
         assert!(off > 0.98, "{off}");
+    }
+
+    #[test]
+    fn without_share_to_interval_frames_further_apart_after_a_calibration_bring_full_pulses() {
+        let share_after_calibration = |share_to_interval: bool| {
+            let m = MountConfig::default().validate().unwrap();
+            let mut config = Learner::<1>::default_config(&m);
+            config.additions.trusted_gate = false;
+            config.additions.share_to_interval = share_to_interval;
+            let mut l = std::boxed::Box::new(Learner::<1>::with_config(&m, config));
+            alternating(&mut l, 300, false);
+            let earned = l.pulse_share();
+            for k in 300..310 {
+                l.learn(Frame {
+                    kind: FrameKind::Calibration,
+                    ..measured(k, 0.0, 2.0)
+                });
+            }
+            // Guiding again with frames 4.5 s apart, 2.25 times as far as
+            // before the calibration.
+            l.learn(Frame {
+                gear_time_s: 2.0 * 309.0 + 4.5,
+                interval_s: 4.5,
+                ..measured(0, 0.0, -0.3)
+            });
+            (earned, l.pulse_share())
+        };
+        let (earned, on) = share_after_calibration(true);
+        assert!(
+            earned < 0.5 && (on - 1.5 * earned).abs() < 1e-4,
+            "{earned} {on}"
+        );
+        let (_, off) = share_after_calibration(false);
+        assert_eq!(off, 1.0);
     }
 
     #[test]

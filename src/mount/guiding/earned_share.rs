@@ -35,9 +35,11 @@
 //! (`super::calibration`); its first two look like guide pulses beyond the
 //! recent ones, twice the same way. Once it is recognised they are taken
 //! back out ([`EarnedShare::calibrating`]): guiding after it goes on with
-//! the share earned before, unless its frames come further apart
-//! (`CARRY_INTERVAL`), where more of the error falls to each pulse and
-//! the share is earned again.
+//! the share earned before. Where its frames come further apart
+//! (`CARRY_INTERVAL`) more of the error falls to each pulse: the share is
+//! scaled up by the square root of the intervals' ratio and earned on
+//! from the new frames' pulses ([`LongerFrames::Scale`]), or earned again
+//! from full pulses ([`LongerFrames::EarnAgain`]).
 //!
 //! Across a power cycle: the share and the statistics behind it are saved
 //! with the model ([`SavedShare`], in the learner's record), so a night
@@ -71,6 +73,17 @@ const CARRY_INTERVAL: f32 = 1.5;
 /// guider sends, inside what the running means take in `f32`.
 const MAX_SAVED_SQUARE: f32 = 1e6;
 
+/// How the share earned before a calibration is carried to guide frames
+/// more than [`CARRY_INTERVAL`] times as far apart as before it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LongerFrames {
+    /// Full pulses, the share earned again.
+    EarnAgain,
+    /// The share scaled by the square root of the intervals' ratio, and
+    /// earned on from there.
+    Scale,
+}
+
 /// The measured share of the RA guide pulses to carry out.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EarnedShare {
@@ -82,14 +95,19 @@ pub struct EarnedShare {
     /// that until it is recognised ([`EarnedShare::calibrating`]).
     before_run: Option<Statistics>,
     /// A calibration was recognised: the first guide frame after it
-    /// decides whether the share earned before it holds.
-    after_calibration: bool,
+    /// decides whether the share earned before it holds, and how it is
+    /// carried to frames further apart.
+    after_calibration: Option<LongerFrames>,
     /// The pulses of the previous two frames, while those were guide
     /// frames.
     previous: Option<f32>,
     before_previous: Option<f32>,
     /// The last pulse beyond its bound, while no pulse within it followed.
     last_beyond: Option<f32>,
+    /// The share was carried to longer frames across a calibration
+    /// ([`LongerFrames::Scale`]): earned on from the new frames' first
+    /// pulses, where a share not yet measured is full.
+    carried: bool,
     /// A share restored with the model, returned to while the pulses are
     /// anti-correlated.
     restored: Option<f32>,
@@ -206,10 +224,11 @@ impl EarnedShare {
             least,
             stats: Statistics::NONE,
             before_run: None,
-            after_calibration: false,
+            after_calibration: None,
             previous: None,
             before_previous: None,
             last_beyond: None,
+            carried: false,
             restored: None,
         }
     }
@@ -269,10 +288,8 @@ impl EarnedShare {
             self.last_beyond = None;
             return PulseShare::FULL;
         };
-        if core::mem::take(&mut self.after_calibration)
-            && !(interval_s <= CARRY_INTERVAL * self.stats.interval_s)
-        {
-            self.stats = Statistics::NONE;
+        if let Some(longer) = self.after_calibration.take() {
+            self.carry_to(interval_s, longer);
         }
         let before = self.stats;
         self.stats.scored = self.stats.scored.saturating_add(1);
@@ -308,8 +325,10 @@ impl EarnedShare {
             self.last_beyond = None;
             self.before_run = None;
         }
-        if self.least >= 1.0 || !trusted || !measured || step {
+        self.carried &= !measured;
+        if self.least >= 1.0 || !trusted || step || !(measured || self.carried) {
             self.stats.fraction = 1.0;
+            self.carried = false;
         } else if !beyond {
             let correlation = clamp(self.stats.lagged / self.stats.square, -1.0, 1.0);
             let mut f = self.stats.fraction * (1.0 + RATE * correlation);
@@ -333,11 +352,41 @@ impl EarnedShare {
     /// the statistics go back to what they were before them (a step's full
     /// pulses too), so that guiding after the calibration goes on with the
     /// share earned before it.
-    pub fn calibrating(&mut self) {
+    pub fn calibrating(&mut self, longer: LongerFrames) {
         if let Some(before) = self.before_run.take() {
             self.stats = before;
         }
-        self.after_calibration = true;
+        self.after_calibration = Some(longer);
+    }
+
+    /// The first guide frame after a calibration, `interval_s` after the
+    /// frame before: guide frames at most [`CARRY_INTERVAL`] times as far
+    /// apart as before keep the share; further apart, `longer` says how
+    /// it is carried to them.
+    fn carry_to(&mut self, interval_s: f32, longer: LongerFrames) {
+        let ratio = interval_s / self.stats.interval_s;
+        if ratio <= CARRY_INTERVAL {
+            return;
+        }
+        match longer {
+            LongerFrames::Scale if ratio.is_finite() && self.measured() => {
+                // The gain that weighs a walking error against white noise
+                // (a Kalman filter's, the walk small beside the noise)
+                // grows as the walk per frame's RMS, the square root of
+                // the interval. The statistics start again: the pulses
+                // before were another loop's.
+                let fraction = (self.stats.fraction * libm::sqrtf(ratio)).min(1.0);
+                self.stats = Statistics {
+                    fraction,
+                    ..Statistics::NONE
+                };
+                self.carried = true;
+            }
+            _ => {
+                self.stats = Statistics::NONE;
+                self.carried = false;
+            }
+        }
     }
 
     /// A window of pulses scored, not all of them 0.
@@ -507,7 +556,7 @@ mod tests {
 
     #[test]
     fn a_calibrations_first_steps_leave_the_share_earned_before_it() {
-        let calibrated = |interval_after: f32| {
+        let calibrated = |interval_after: f32, longer: LongerFrames| {
             let mut d = EarnedShare::new(0.2);
             earned(&mut d);
             let share = d.frame(Some(0.1), 1.0, true);
@@ -516,22 +565,43 @@ mod tests {
             // until the third makes them a calibration: full pulses.
             d.frame(Some(20.0), 1.0, true);
             assert_eq!(d.frame(Some(20.0), 1.0, true), PulseShare::FULL);
-            d.calibrating();
+            d.calibrating(longer);
             assert_eq!(d.frame(None, 1.0, true), PulseShare::FULL);
-            d.calibrating();
+            d.calibrating(longer);
             (share, d.frame(Some(0.1), interval_after, true))
         };
         // Guiding goes on at the cadence before: the share earned before,
         // as one more plain pulse leaves it.
-        let (share, after) = calibrated(1.0);
+        let (share, after) = calibrated(1.0, LongerFrames::Scale);
         assert!(
             (after.fraction - share.fraction).abs() < 0.01,
             "{share:?} {after:?}"
         );
         assert!((after.up_to_arcsec / share.up_to_arcsec - 1.0).abs() < 0.01);
         // Frames further apart: earned again.
-        let (_, after) = calibrated(CARRY_INTERVAL * 1.1);
+        let (_, after) = calibrated(CARRY_INTERVAL * 1.1, LongerFrames::EarnAgain);
         assert_eq!(after, PulseShare::FULL);
+        // Or scaled by the square root of the intervals' ratio, the
+        // statistics started again from the new frame (its bound 4 times
+        // its pulse).
+        let (share, after) = calibrated(4.0, LongerFrames::Scale);
+        assert!(
+            (after.fraction - 2.0 * share.fraction).abs() < 1e-6,
+            "{share:?} {after:?}"
+        );
+        assert!((after.up_to_arcsec - 0.4).abs() < 1e-6, "{after:?}");
+        // Earned on from there: anti-correlated pulses lower it at once.
+        let mut d = EarnedShare::new(0.2);
+        earned(&mut d);
+        d.calibrating(LongerFrames::Scale);
+        let first = d.frame(Some(0.1), 4.0, true).fraction;
+        let mut next = first;
+        for k in 0..10 {
+            next = d
+                .frame(Some(if k % 2 == 0 { -0.1 } else { 0.1 }), 4.0, true)
+                .fraction;
+        }
+        assert!(first < 1.0 && next < first, "{first} {next}");
         // A plain pulse between the steps and the calibration: they were
         // guide pulses, and stay.
         let mut d = EarnedShare::new(0.2);
@@ -539,7 +609,7 @@ mod tests {
         d.frame(Some(20.0), 1.0, true);
         d.frame(Some(20.0), 1.0, true);
         d.frame(Some(0.1), 1.0, true);
-        d.calibrating();
+        d.calibrating(LongerFrames::EarnAgain);
         assert_eq!(d.frame(Some(0.1), 1.0, true), PulseShare::FULL);
     }
 
