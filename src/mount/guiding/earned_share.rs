@@ -74,7 +74,7 @@ const CARRY_INTERVAL: f32 = 1.5;
 const MAX_SAVED_SQUARE: f32 = 1e6;
 
 /// How the share earned before a calibration is carried to guide frames
-/// more than [`CARRY_INTERVAL`] times as far apart as before it.
+/// more than 1.5 times as far apart as before it (`CARRY_INTERVAL`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum LongerFrames {
     /// Full pulses, the share earned again.
