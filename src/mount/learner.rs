@@ -621,68 +621,57 @@ mod tests {
         }
     }
 
+    /// The share earned from alternating pulses, and the share after a
+    /// calibration (its first two steps beyond the recent pulses, 4 RMS,
+    /// but within the bump's bound, then the frames of the recognised
+    /// calibration) and the guide frame `after`, the addition `name` on or
+    /// off.
+    fn share_after_calibration(name: &str, on: bool, after: Frame) -> (f32, f32) {
+        let m = MountConfig::default().validate().unwrap();
+        let mut config = Learner::<1>::default_config(&m);
+        config.additions.trusted_gate = false;
+        config.additions.set(name, on).unwrap();
+        let mut l = std::boxed::Box::new(Learner::<1>::with_config(&m, config));
+        alternating(&mut l, 300, false);
+        let earned = l.pulse_share();
+        for k in 300..302 {
+            l.learn(measured(k, 0.0, 2.0));
+        }
+        for k in 302..310 {
+            l.learn(Frame {
+                kind: FrameKind::Calibration,
+                ..measured(k, 0.0, 2.0)
+            });
+        }
+        l.learn(after);
+        (earned, l.pulse_share())
+    }
+
     #[test]
     fn without_the_calibration_share_a_calibration_brings_full_pulses() {
-        let share_after_calibration = |calibration_share: bool| {
-            let m = MountConfig::default().validate().unwrap();
-            let mut config = Learner::<1>::default_config(&m);
-            config.additions.trusted_gate = false;
-            config.additions.calibration_share = calibration_share;
-            let mut l = std::boxed::Box::new(Learner::<1>::with_config(&m, config));
-            alternating(&mut l, 300, false);
-            let earned = l.pulse_share();
-            // Two steps beyond the recent pulses (4 RMS) but within the
-            // bump's bound, then the frames of the recognised calibration.
-            for k in 300..302 {
-                l.learn(measured(k, 0.0, 2.0));
-            }
-            for k in 302..310 {
-                l.learn(Frame {
-                    kind: FrameKind::Calibration,
-                    ..measured(k, 0.0, 2.0)
-                });
-            }
-            l.learn(measured(310, 0.0, -0.3));
-            (earned, l.pulse_share())
-        };
-        let (earned, on) = share_after_calibration(true);
+        let after = measured(310, 0.0, -0.3);
+        let (earned, on) = share_after_calibration("calibration_share", true, after);
         assert!(earned < 0.5 && (on - earned).abs() < 0.02, "{earned} {on}");
         // Off: full pulses, less what the one plain pulse after earned.
-        let (_, off) = share_after_calibration(false);
+        let (_, off) = share_after_calibration("calibration_share", false, after);
         assert!(off > 0.98, "{off}");
     }
 
     #[test]
     fn without_share_to_interval_frames_further_apart_after_a_calibration_bring_full_pulses() {
-        let share_after_calibration = |share_to_interval: bool| {
-            let m = MountConfig::default().validate().unwrap();
-            let mut config = Learner::<1>::default_config(&m);
-            config.additions.trusted_gate = false;
-            config.additions.share_to_interval = share_to_interval;
-            let mut l = std::boxed::Box::new(Learner::<1>::with_config(&m, config));
-            alternating(&mut l, 300, false);
-            let earned = l.pulse_share();
-            for k in 300..310 {
-                l.learn(Frame {
-                    kind: FrameKind::Calibration,
-                    ..measured(k, 0.0, 2.0)
-                });
-            }
-            // Guiding again with frames 4.5 s apart, 2.25 times as far as
-            // before the calibration.
-            l.learn(Frame {
-                gear_time_s: 2.0 * 309.0 + 4.5,
-                interval_s: 4.5,
-                ..measured(0, 0.0, -0.3)
-            });
-            (earned, l.pulse_share())
+        // Guiding again with frames 4.5 s apart, 2.25 times as far as
+        // before the calibration.
+        let after = Frame {
+            gear_time_s: 2.0 * 309.0 + 4.5,
+            interval_s: 4.5,
+            ..measured(0, 0.0, -0.3)
         };
-        let (earned, on) = share_after_calibration(true);
+        let (earned, on) = share_after_calibration("share_to_interval", true, after);
         assert!(
             earned < 0.5 && (on - 1.5 * earned).abs() < 1e-4,
             "{earned} {on}"
         );
-        let (_, off) = share_after_calibration(false);
+        let (_, off) = share_after_calibration("share_to_interval", false, after);
         assert_eq!(off, 1.0);
     }
 
