@@ -159,6 +159,7 @@ impl<'a> Cell<'a> {
                         ..self.setup
                     },
                     config: self.config,
+                    calibrates: false,
                 };
                 let rms = self.seeds.iter().map(|&seed| {
                     let [_, cold, unknown, index] = nights::one_seed(run, seed, Night2Start::Moved);

@@ -23,10 +23,15 @@
 //!   [`index_offset`]; from park the exact offset).
 //! - The guider locks where the star is at the start of each night (PHD2's
 //!   lock), so that no night starts with a pull to an old lock position.
+//!   With `--calibrate` night 2 starts with the guider's calibration
+//!   (PHD2's, as a night's sections start in `guide-sim night`), which the
+//!   firmware does not learn from, and its 30 minutes are scored from the
+//!   calibration's end.
 //!   Every row is the mean of seeds 1-3 (`st4_sim::SEEDS`), each with its
 //!   own night-2 phase and, with noise, night 2 with its own noise.
 
 use crate::cases::Case;
+use crate::night::calibration::{Calibration, Next};
 use crate::st4_sim::{self, Firmware, Rig, Setup, SEEDS};
 use crate::store_sim::SimStore;
 use mkgp_mount::control_loop::port_mount::StoreRequest;
@@ -99,6 +104,8 @@ pub struct Run<'a> {
     pub noise_px: f64,
     pub setup: Setup,
     pub config: MountConfig,
+    /// Night 2 starts with the guider's calibration.
+    pub calibrates: bool,
 }
 
 impl<'a> Run<'a> {
@@ -113,21 +120,48 @@ impl<'a> Run<'a> {
                 ..Setup::default()
             },
             config: st4_sim::mount_config(case),
+            calibrates: false,
         }
     }
+}
+
+/// The guider's calibration (PHD2's, [`Calibration`]): each step's pulse,
+/// one exposure after each, the guider's own loop off; then it locks where
+/// the star is. Returns when it ends, us.
+fn calibrate(rig: &mut Rig) -> u64 {
+    rig.guider_on = false;
+    let mut plan = Calibration::new(rig.believed_guide_rate());
+    while let Some(e) = rig.run_to_exposure(u64::MAX) {
+        match plan.after_exposure() {
+            Next::Row { pulse, .. } => {
+                if let Some(leg) = pulse {
+                    let sent = rig.send_pulse(leg.line(), plan.pulse_us());
+                    rig.hold_camera(sent.start_us + sent.duration_us);
+                }
+            }
+            Next::Done => {
+                rig.lock_arcsec += e.measured_arcsec;
+                break;
+            }
+        }
+    }
+    rig.guider_on = true;
+    rig.now_us
 }
 
 /// A night of `length_s` on the MKGP firmware, scored from `score_from_s`,
 /// the gear at `gear_phase_s`. Its firmware boots from `boot`'s store,
 /// restoring its newest model with the phase given; without, from an
-/// erased store and a cold model.
+/// erased store and a cold model. With `calibrates` the guider calibrates
+/// first, and the night's length and score start at the calibration's
+/// end.
 fn night(
     run: Run,
     seed: u64,
     gear_phase_s: f64,
     boot: Option<(SimStore, Phase)>,
-    length_s: f64,
-    score_from_s: f64,
+    (length_s, score_from_s): (f64, f64),
+    calibrates: bool,
 ) -> Rig {
     let mut rig = Rig::with_additions(
         run.case,
@@ -141,7 +175,6 @@ fn night(
     rig.set_sky(run.setup.sky);
     rig.gear_phase_s = gear_phase_s;
     rig.lock_arcsec = rig.pointing_arcsec();
-    rig.score_window_s = (score_from_s, f64::INFINITY);
     let store = match boot {
         Some((mut store, phase)) => {
             let bytes = store.load_model().expect("night 1's model loads");
@@ -154,7 +187,10 @@ fn night(
         None => SimStore::default(),
     };
     rig.set_store(store);
-    rig.run_until((length_s * 1e6) as u64);
+    let start_us = if calibrates { calibrate(&mut rig) } else { 0 };
+    let start_s = start_us as f64 * 1e-6;
+    rig.score_window_s = (start_s + score_from_s, f64::INFINITY);
+    rig.run_until(start_us + (length_s * 1e6) as u64);
     rig
 }
 
@@ -162,7 +198,7 @@ fn night(
 /// the phase.
 pub fn one_seed(run: Run, seed: u64, start: Night2Start) -> [f64; 4] {
     let case = run.case;
-    let mut first = night(run, seed, 0.0, None, NIGHT_1_S, SETTLED_FROM_S);
+    let mut first = night(run, seed, 0.0, None, (NIGHT_1_S, SETTLED_FROM_S), false);
     let request = match start {
         Night2Start::Moved => StoreRequest::Model { port: 0 },
         Night2Start::Parked => StoreRequest::Park(StepCounts {
@@ -185,7 +221,7 @@ pub fn one_seed(run: Run, seed: u64, start: Night2Start) -> [f64; 4] {
     let seed_2 = seed + NIGHT_2_NOISE_SEED;
     let second = |restore: Option<Phase>| {
         let boot = restore.map(|p| (flash.clone(), p));
-        night(run, seed_2, phase, boot, FIRST_S, 0.0).score()
+        night(run, seed_2, phase, boot, (FIRST_S, 0.0), run.calibrates).score()
     };
     let known = match start {
         Night2Start::Moved => Phase::Worm {
@@ -203,9 +239,18 @@ pub fn one_seed(run: Run, seed: u64, start: Night2Start) -> [f64; 4] {
 }
 
 /// One row: the mean over [`SEEDS`], each its own night-2 phase (and
-/// noise), the firmware running `additions`.
-fn row(case: &Case, noise_px: f64, start: Night2Start, additions: Additions) -> Row {
-    let run = Run::case(case, noise_px, additions);
+/// noise), the firmware running `additions`; night 2 starts with a
+/// calibration if `calibrates`.
+fn row(
+    case: &Case,
+    noise_px: f64,
+    (start, calibrates): (Night2Start, bool),
+    additions: Additions,
+) -> Row {
+    let run = Run {
+        calibrates,
+        ..Run::case(case, noise_px, additions)
+    };
     let runs: Vec<[f64; 4]> = SEEDS
         .par_iter()
         .map(|&seed| one_seed(run, seed, start))
@@ -222,11 +267,12 @@ fn row(case: &Case, noise_px: f64, start: Night2Start, additions: Additions) -> 
 }
 
 /// The table for `cases` and noise levels, one row per case and level in
-/// that order; the rows run in parallel.
+/// that order, night 2 starting at `start` and with a calibration if
+/// `calibrates`; the rows run in parallel.
 pub fn table(
     cases: &[Case],
     noise_levels: &[f64],
-    start: Night2Start,
+    night_2: (Night2Start, bool),
     additions: Additions,
 ) -> Vec<Row> {
     let rows: Vec<(&Case, f64)> = cases
@@ -234,7 +280,7 @@ pub fn table(
         .flat_map(|case| noise_levels.iter().map(move |&noise| (case, noise)))
         .collect();
     rows.into_par_iter()
-        .map(|(case, noise)| row(case, noise, start, additions))
+        .map(|(case, noise)| row(case, noise, night_2, additions))
         .collect()
 }
 

@@ -10,7 +10,7 @@
 //!               [--aggressiveness A] [--exposure S] [--min-move PX] [--calibration K]
 //!               [--drift A] [--walk W] [--bump B] [--least-pulse-share F]
 //!               [--without NAME]...
-//! guide-sim nights [--case ID] [--cases FILE] [--noise PX] [--park] [--csv]
+//! guide-sim nights [--case ID] [--cases FILE] [--noise PX] [--park] [--calibrate] [--csv]
 //!                  [--without NAME]...
 //! guide-sim night [--case ID] [--cases FILE] [--noise PX] [--seed N] [--csv]
 //!                 [--phd2-log FILE] [--truth FILE] [--trace FILE] [--without NAME]...
@@ -111,7 +111,9 @@ enum Command {
     /// others night 2's first 30 minutes. Noise 0 and 1 px (seeds 1-3, mean)
     /// unless --noise PX picks one level; --case ID runs one case. Night 2
     /// starts with the gear moved (the index gives the worm's phase) or,
-    /// with --park, where night 1 parked it (every phase carries over).
+    /// with --park, where night 1 parked it (every phase carries over);
+    /// with --calibrate it starts with the guider's calibration (PHD2's),
+    /// and its 30 minutes are scored from the calibration's end.
     #[command(verbatim_doc_comment)]
     Nights(NightsArgs),
     /// A scripted night of many sections through the firmware's loop
@@ -431,6 +433,10 @@ struct NightsArgs {
     /// phase drawn from the seed)
     #[arg(long)]
     park: bool,
+    /// Night 2 starts with the guider's calibration (PHD2's), scored from
+    /// its end
+    #[arg(long)]
+    calibrate: bool,
     /// Switch off this addition around the paper's model (repeatable; `ablate --help`)
     #[arg(long, value_name = "NAME", value_parser = addition_name)]
     without: Vec<String>,
@@ -872,7 +878,12 @@ fn cmd_nights(args: NightsArgs) -> ExitCode {
     } else {
         nights::Night2Start::Moved
     };
-    let rows = nights::table(&cases, &levels, start, additions_without(&args.without));
+    let rows = nights::table(
+        &cases,
+        &levels,
+        (start, args.calibrate),
+        additions_without(&args.without),
+    );
     if args.runs.csv {
         println!("{}", nights::CSV_HEADER);
         for r in &rows {
