@@ -536,8 +536,11 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     /// first measured frame. Pushed across the jump instead, the cells
     /// would be filled by interpolating the last frame to the next (as
     /// measured data), or, frame by frame through a long slew, push the
-    /// learned data out of the ring. Does nothing while a placement is
-    /// pending or before anything was learned.
+    /// learned data out of the ring. While the phase search after a
+    /// restore waits for data, the frames before the jump are dropped and
+    /// the restored data waits to be placed after it as the restore would
+    /// have placed it. Does nothing while a restored model waits for its
+    /// first frame or before anything was learned.
     pub fn jumped(&mut self) {
         if self.frames == 0 {
             return;
