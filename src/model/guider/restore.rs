@@ -343,24 +343,12 @@ impl<const N: usize> Restore<N> {
         // The cells move: stages put back stay where they are.
         self.refine = None;
         // As a snapshot would save them (the time of the first cell's
-        // start on the clock) and restore them, through the scratch
-        // buffer (twice the grid's cells: gear errors, then variances).
+        // start on the clock) and restore them.
         let zero = self.clock_at_grid_time(grid, clock, grid.cell_time(0) + 0.5 * CELL_S);
-        let (gears, variances) = scratch.split_at_mut(GRID_CELLS);
-        for (i, (g, v)) in gears
-            .iter_mut()
-            .zip(variances.iter_mut())
-            .enumerate()
-            .take(len)
-        {
-            (*g, *v) = grid.cell(i);
-        }
-        let (gears, variances) = scratch.split_at(GRID_CELLS);
-        let cells = gears.iter().zip(variances).take(len).map(|(&g, &v)| (g, v));
         // The cells keep their held indices, and an earlier dark gap
         // with them.
         let dark = grid.dark();
-        grid.restore(cells, DARK_VARIANCE);
+        keep_oldest(grid, scratch, len);
         if let Some((end, cells)) = dark {
             grid.set_dark(end, cells);
         }
@@ -401,18 +389,7 @@ impl<const N: usize> Restore<N> {
             }
             shift_cells_by_scratch(grid, scratch, saved);
         }
-        let (gears, variances) = scratch.split_at_mut(GRID_CELLS);
-        for (i, (g, v)) in gears
-            .iter_mut()
-            .zip(variances.iter_mut())
-            .enumerate()
-            .take(saved)
-        {
-            (*g, *v) = grid.cell(i);
-        }
-        let (gears, variances) = scratch.split_at(GRID_CELLS);
-        let cells = gears.iter().zip(variances).take(saved);
-        grid.restore(cells.map(|(&g, &v)| (g, v)), DARK_VARIANCE);
+        keep_oldest(grid, scratch, saved);
         self.refine = None;
         self.level_pending = false;
         self.resume = Some(search.restored);
@@ -796,6 +773,24 @@ impl<S: Scalar, const N: usize> Fit<'_, S, N> {
         }
         (n > 0).then(|| sum / f64::from(n))
     }
+}
+
+/// Refill `grid` with its own oldest `count` cells as restored cells
+/// (time 0 where the first starts; the newer ones dropped), through the
+/// work buffer (twice the grid's cells: gear errors, then variances).
+fn keep_oldest<S: Scalar>(grid: &mut Grid<S>, scratch: &mut [S; FFT_LEN], count: usize) {
+    let (gears, variances) = scratch.split_at_mut(GRID_CELLS);
+    for (i, (g, v)) in gears
+        .iter_mut()
+        .zip(variances.iter_mut())
+        .enumerate()
+        .take(count)
+    {
+        (*g, *v) = grid.cell(i);
+    }
+    let (gears, variances) = scratch.split_at(GRID_CELLS);
+    let cells = gears.iter().zip(variances).take(count);
+    grid.restore(cells.map(|(&g, &v)| (g, v)), DARK_VARIANCE);
 }
 
 /// How many of the cells held from `from` on in `grid` hold a
