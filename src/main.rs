@@ -229,7 +229,8 @@ fn start(spawner: Spawner, hw: Hardware, config: MountConfig, boot: Boot) -> Res
         (Some(store), Some(buf)) => Some(firmware::learning_task::Storage {
             store,
             buf,
-            parked: park.is_some(),
+            // Only a model saved with the park is on its counts' clock.
+            parked: park.is_some_and(|p| p.carries_model),
             index: mkgp_mount::mount::worm_index::WormIndex::new(&mount),
         }),
         _ => None,

@@ -48,6 +48,11 @@ impl SimStore {
         out
     }
 
+    /// The park the next boot reads, if one was saved.
+    pub fn load_park(&mut self) -> Option<Park> {
+        self.with_store(|s| block_on(s.load_park()).ok())
+    }
+
     /// The model the next boot loads, if one was saved.
     pub fn load_model(&mut self) -> Option<Vec<u8>> {
         self.with_store(|s| {
@@ -93,12 +98,16 @@ impl SimStore {
             }),
             StoreRequest::Model { .. } => self.save_model(model, Erase::Allow, index_pass),
             StoreRequest::Park(counts) => {
+                // The model first: the park says whether it went with it
+                // (as the firmware's `storage::serve`).
+                let model_saved = self.save_model(model, Erase::Allow, index_pass);
                 let park = Park {
                     ra_steps: counts.ra,
                     dec_steps: counts.dec,
+                    carries_model: model_saved,
                 };
                 let parked = self.with_store(|s| block_on(s.save_park(park, Erase::Allow)).is_ok());
-                parked & self.save_model(model, Erase::Allow, index_pass)
+                parked & model_saved
             }
             StoreRequest::Unpark => {
                 self.with_store(|s| block_on(s.clear_park(Erase::Allow)).is_ok())

@@ -5,7 +5,13 @@
 use host_tests::cases;
 use host_tests::data::cases_file;
 use host_tests::nights::{self, Night2Start, Row};
+use host_tests::st4_sim::{self, Firmware, Rig};
+use host_tests::store_sim::SimStore;
+use mkgp_mount::control_loop::port_mount::StoreRequest;
 use mkgp_mount::model::additions::Additions;
+use mkgp_mount::model::snapshot::Phase;
+use mkgp_mount::mount::learner::RECORD_FORMAT;
+use mkgp_mount::port::mount_port::StepCounts;
 
 fn table(levels: &[f64], start: Night2Start) -> Vec<Row> {
     calibrated_table(levels, start, false)
@@ -80,4 +86,49 @@ fn goals_after_a_calibration() {
         !(r.noise_px == 0.0 && ["C5", "C6", "C7", "C8"].contains(&r.case.as_str()))
             || r.restored_first30 <= 0.85 * r.cold_first30
     });
+}
+
+/// A park says whether the model went with it (`Park::carries_model`):
+/// only then does the next start place the model at the phase the park's
+/// counts give. Parked while a model restored with its phase unknown still
+/// waits for it (here before its first frame: a night of tracking without
+/// guiding), the model is refused and the older one, saved on another
+/// start's clock, stays: a park that carried it would have placed it at a
+/// phase nothing measured.
+#[test]
+fn a_park_carries_the_model_only_if_it_was_saved_with_it() {
+    let cases = cases::load(&cases_file()).unwrap_or_else(|e| panic!("{e}"));
+    let case = cases.iter().find(|c| c.name == "C5").expect("C5");
+    let rig = || {
+        let config = st4_sim::mount_config(case);
+        Rig::with_additions(case, Firmware::Mkgp, 0.0, 1, config, Additions::ALL)
+    };
+    let park = |rig: &mut Rig| {
+        let counts = StepCounts {
+            ra: rig.ra_steps(),
+            dec: rig.dec_steps(),
+        };
+        let outcome = rig.ask_store(StoreRequest::Park(counts));
+        let store = rig.store().expect("a store");
+        (outcome.saved, store.load_park().expect("a park"))
+    };
+    let mut first = rig();
+    first.set_store(SimStore::default());
+    first.run_until(3_600_000_000);
+    let (saved, parked) = park(&mut first);
+    assert!(saved && parked.carries_model);
+    let mut flash = first.store().expect("a store").clone();
+    let model = flash.load_model().expect("a model");
+    // Started without the park: the phase unknown.
+    let mut second = rig();
+    second
+        .mkgp_learner()
+        .expect("a learner")
+        .restore(&model, RECORD_FORMAT, Phase::Unknown)
+        .unwrap_or_else(|e| panic!("{e:?}"));
+    second.set_store(flash);
+    let (saved, parked) = park(&mut second);
+    assert!(!saved && !parked.carries_model);
+    let store = second.store().expect("a store");
+    assert_eq!(store.load_model(), Some(model));
 }

@@ -27,7 +27,8 @@ use crate::STAGES;
 pub struct Storage {
     pub store: &'static mut FirmwareStore,
     pub buf: &'static mut SnapshotBuffer,
-    /// Parked at power-off: the counters, and the model's phase, carried over.
+    /// Parked at power-off with the model saved at the park: the
+    /// counters, and the model's phase, carried over.
     pub parked: bool,
     /// The worm-index sensor's passes (none if no sensor is fitted).
     pub index: WormIndex,

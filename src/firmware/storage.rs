@@ -124,15 +124,18 @@ pub fn report<E>(what: &str, result: Result<(), SaveError<E>>) -> bool {
 }
 
 /// The park the mount was switched off in, if any: its step counts, which
-/// the axes start from so that the gear's phase carries over. Cleared once
-/// read, so that a later start does not take it for a park again.
+/// the axes start from so that the gear's phase carries over (and the
+/// model's, if it was saved with the park: [`Park::carries_model`]).
+/// Cleared once read, so that a later start does not take it for a park
+/// again.
 pub async fn boot_park(store: &mut FirmwareStore) -> Option<Park> {
     match store.load_park().await {
         Ok(park) => {
             defmt::info!(
-                "parked at RA {} Dec {} steps: the gear's phase carries over",
+                "parked at RA {} Dec {} steps: the gear's phase carries over (the model's: {})",
                 park.ra_steps,
-                park.dec_steps
+                park.dec_steps,
+                park.carries_model
             );
             report("park cleared", store.clear_park(Erase::Allow).await);
             Some(park)
@@ -291,12 +294,15 @@ pub async fn serve(
             save_model(store, learner, buf, Erase::Allow, index_pass).await
         }
         StoreRequest::Park(counts) => {
+            // The model first: the park says whether it went with it.
+            let model_saved = save_model(store, learner, buf, Erase::Allow, index_pass).await;
             let park = Park {
                 ra_steps: counts.ra,
                 dec_steps: counts.dec,
+                carries_model: model_saved,
             };
             let saved = flash_operation(store.save_park(park, Erase::Allow)).await;
-            report("park", saved) & save_model(store, learner, buf, Erase::Allow, index_pass).await
+            report("park", saved) & model_saved
         }
         StoreRequest::Unpark => {
             let saved = flash_operation(store.clear_park(Erase::Allow)).await;

@@ -494,7 +494,9 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     /// bytes for three stages; returns the length written. Not a per-frame
     /// call: it reads the newest
     /// [`SNAPSHOT_CELLS`](crate::model::snapshot::SNAPSHOT_CELLS) cells.
-    /// Refused ([`SnapshotError::Placing`]) while a phase search is pending.
+    /// Refused ([`SnapshotError::Placing`]) while restored data waits for
+    /// its phase: a phase search pending, or with the phase unknown the
+    /// first frame.
     pub fn snapshot(&self, out: &mut [u8]) -> Result<usize, SnapshotError> {
         let stages = Stages {
             trackers: &self.trackers,

@@ -106,10 +106,11 @@ pub enum SnapshotError {
     /// mount or worm; `mount::learner`): refused, the model learns this
     /// one from its prior.
     WormPeriod,
-    /// Not now: restored data is still waiting for its phase search, so
-    /// the grid holds it at no known phase (`Guider::snapshot`). The
-    /// previous save stays the one to keep; half a worm period later the
-    /// model can be saved again.
+    /// Not now: restored data is still waiting for its phase search (or,
+    /// with the phase unknown, for the first frame), so the grid holds it
+    /// at no known phase (`Guider::snapshot`). The previous save stays the
+    /// one to keep; half a worm period of guiding later the model can be
+    /// saved again.
     Placing,
 }
 

@@ -203,7 +203,8 @@ impl<const N: usize> Learner<N> {
     /// most [`RECORD_MAX`] bytes; store it as [`RECORD_FORMAT`]); returns the
     /// length. Not per frame: it reads a thousand cells. Refused after a
     /// restore until the saved data is placed (`SnapshotError::Placing`):
-    /// half a worm period with the phase unknown; with only the worm's, a
+    /// half a worm period of guiding with the phase unknown (none before
+    /// it starts); with only the worm's, a
     /// twentieth or until the new data picks each stage's phase (a quarter
     /// where no stage can be taken apart). Keep the previous save then.
     pub fn snapshot(&self, out: &mut [u8]) -> Result<usize, SnapshotError> {

@@ -129,6 +129,7 @@ fn park(ra_steps: i64) -> Record {
     Record::Park(Park {
         ra_steps,
         dec_steps: -ra_steps,
+        carries_model: ra_steps % 2 == 0,
     })
 }
 

@@ -430,6 +430,7 @@ mod tests {
         let park = Park {
             ra_steps: 123_456_789,
             dec_steps: -42,
+            carries_model: true,
         };
         with_store(&mut mem, async |s| {
             s.save_park(park, Erase::Allow).await.unwrap();
@@ -463,6 +464,7 @@ mod tests {
                 let p = Park {
                     ra_steps: 0,
                     dec_steps: 0,
+                    carries_model: false,
                 };
                 let r = store.save_park(p, Erase::Allow).await;
                 assert!(matches!(r, Err(SaveError::Geometry(_))));

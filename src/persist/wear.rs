@@ -125,6 +125,7 @@ mod tests {
         let park = Park {
             ra_steps: 1,
             dec_steps: 2,
+            carries_model: true,
         };
         let mut erase_at = vec![];
         block_on(async {

@@ -239,7 +239,11 @@ impl<const N: usize> Restore<N> {
         clock: impl Fn(f64) -> f64,
         out: &mut [u8],
     ) -> Result<usize, SnapshotError> {
-        if self.phase_search.is_some() {
+        // Restored data at no known phase (its first frame still to come,
+        // or its search pending) is on no clock this start knows: saved
+        // now it would be taken for data on it (a park beside it).
+        let unplaced = self.resume.is_some_and(|r| r.place == Place::Search);
+        if self.phase_search.is_some() || unplaced {
             return Err(SnapshotError::Placing);
         }
         let saved: [SavedStage; N] = core::array::from_fn(|s| {
@@ -1356,14 +1360,16 @@ mod tests {
 
     /// A new guider holding the learned model, restored with its phase
     /// unknown (the phase search pending).
-    /// While the phase search is pending the grid holds the restored data
-    /// at no known phase: no snapshot; after it, one.
+    /// Until the phase search has placed it the grid holds the restored
+    /// data at no known phase: no snapshot, before the first frame too;
+    /// after it, one.
     #[test]
     fn no_snapshot_until_the_phase_is_found() {
         use crate::model::snapshot::SnapshotError;
         let g = learned();
         let (mut r, _, _) = restored_into(&g, *g.config(), Phase::Unknown);
         let mut out = [0u8; SNAPSHOT_MAX];
+        assert_eq!(r.snapshot(&mut out), Err(SnapshotError::Placing));
         run(&mut r, 777.0, 0.0, 0.0, 100.0, 0.0);
         assert_eq!(r.snapshot(&mut out), Err(SnapshotError::Placing));
         // Half a worm period (216 s) and a frame.
