@@ -366,9 +366,8 @@ impl<const N: usize> Restore<N> {
 
     /// A jump while the phase search waits for new data: what came was
     /// taken at the old pointing, and matched against the saved cells
-    /// together with what comes after the jump, it matched neither (with
-    /// the phase unknown, the first 15 minutes after a jump 2,700 s on
-    /// measured as a cold model's). So the new cells are dropped, the
+    /// together with what comes after the jump, it matches neither. So
+    /// the new cells are dropped, the
     /// stages taken out are put back where they were, and the restored
     /// cells wait for the first frame after the jump as they waited for
     /// the first after the restore: the clock counts the jump's gear time,
