@@ -82,11 +82,7 @@ fn write_real(v: f32, reply: &mut Reply) {
         reply.text(b"inf");
         return;
     }
-    let magnitude = if a > 0.0 {
-        libm::floor(libm::log10(a)) as i32
-    } else {
-        0
-    };
+    let magnitude = decimal_magnitude(a);
     if magnitude > 14 {
         // No mount has such a value (validate refuses it); say so plainly
         // rather than print an integer of thirty digits.
@@ -105,17 +101,36 @@ fn write_real(v: f32, reply: &mut Reply) {
     }
 }
 
+/// The decimal exponent of finite `a` >= 0 (`floor(log10(a))`; 0 for 0),
+/// at most 15: by whole powers of ten, exact up there, which libm's
+/// `log10` and `pow` would pull into the firmware for this alone.
+fn decimal_magnitude(a: f64) -> i32 {
+    let (mut magnitude, mut power) = (0, 1.0);
+    if a >= 1.0 {
+        while magnitude < 15 && a >= 10.0 * power {
+            power *= 10.0;
+            magnitude += 1;
+        }
+    } else if a > 0.0 {
+        // The smallest f32 is 1.4e-45.
+        while magnitude > -46 && a * power < 1.0 {
+            power *= 10.0;
+            magnitude -= 1;
+        }
+    }
+    magnitude
+}
+
 /// `a` (finite, >= 0, below 1e15, of decimal `magnitude`) with `digits`
 /// significant digits, no trailing zeros after the point.
 fn write_digits(a: f64, magnitude: i32, digits: i32, out: &mut Reply) {
     // The decimals that leaves after the point: none for large values, at
     // most 12 (below 1e-3 fewer digits remain; no field is that small).
     let decimals = (digits - 1 - magnitude).clamp(0, 12) as u32;
-    let scale = libm::pow(10.0, f64::from(decimals));
-    // Below 1e15 (no decimals) or 1e9 x 10 (with them): exact in a u64.
-    let scaled = libm::round(a * scale) as u64;
     // At least 1: no division by zero (and 10^12 fits a u64 anyway).
     let unit = 10u64.pow(decimals).max(1);
+    // Below 1e15 (no decimals) or 1e9 x 10 (with them): exact in a u64.
+    let scaled = libm::round(a * unit as f64) as u64;
     out.uint(scaled / unit);
     let mut fraction = scaled % unit;
     let mut width = decimals as usize;
@@ -191,6 +206,37 @@ mod tests {
                 "{v:e} -> {text}"
             );
         }
+    }
+
+    /// The decimal exponent by powers of ten is `log10`'s, over every
+    /// magnitude an `f32` has, at the powers of ten and just below them.
+    #[test]
+    fn the_decimal_magnitude_is_that_of_log10() {
+        let mut rng = SplitMix64::new(9);
+        for _ in 0..200_000 {
+            let v = libm::pow(10.0, rng.f64_in(-45.0, 14.9)) as f32;
+            let a = f64::from(v);
+            if a > 0.0 {
+                assert_eq!(
+                    decimal_magnitude(a),
+                    libm::floor(libm::log10(a)) as i32,
+                    "{v:e}"
+                );
+            }
+        }
+        for k in -30..=14 {
+            let power = format!("1e{k}").parse::<f32>().unwrap();
+            for v in [power, f32::from_bits(power.to_bits() - 1)] {
+                let a = f64::from(v);
+                assert_eq!(
+                    decimal_magnitude(a),
+                    libm::floor(libm::log10(a)) as i32,
+                    "{v:e}"
+                );
+            }
+        }
+        assert_eq!(decimal_magnitude(0.0), 0);
+        assert_eq!(decimal_magnitude(1e20), 15);
     }
 
     /// Random bytes never panic and never give a non-finite real.
