@@ -225,6 +225,13 @@ additions! {
     /// stage moved where the data picks its phase clearly. Off: they stay
     /// where the first search put them.
     phase_refine: Restore,
+    /// A jump: after a slew whose placement reaches so far beyond the
+    /// data that the tracked periods' error leaves a stage's phase
+    /// uncertain by an eighth of its period (a meridian flip), that
+    /// stage's phase is searched in the new data as `phase_refine`
+    /// searches a restored one, and the stage moved where the data picks
+    /// it clearly. Off: the stages stay where the placement put them.
+    slew_refine: Restore,
     /// The restore: at the first measured frame the restored (or, after
     /// a slew, re-placed) data moves to meet the measured gear error's
     /// level (the mount's reconstruction starts again from 0 each night;
@@ -300,6 +307,7 @@ mod tests {
             "stage_phases",
             "recent_shares",
             "phase_refine",
+            "slew_refine",
             "level_match",
             "saved_share",
             "trusted_gate",

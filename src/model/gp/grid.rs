@@ -310,9 +310,17 @@ impl<S: Scalar> Grid<S> {
         )
     }
 
-    /// Absolute index of held cell `i` (0 = oldest).
-    fn absolute(&self, i: usize) -> u64 {
+    /// Absolute index of held cell `i` (0 = oldest): a cell keeps it while
+    /// older ones are dropped.
+    pub fn absolute(&self, i: usize) -> u64 {
         self.emitted - self.len as u64 + i as u64
+    }
+
+    /// The held index of the cell at `absolute` index: 0 for a cell
+    /// dropped, `len` for the open cell and any after it.
+    pub fn held(&self, absolute: u64) -> usize {
+        let i = absolute.saturating_sub(self.absolute(0));
+        i.min(self.len as u64) as usize
     }
 
     /// Drop the `count` oldest cells; the others keep their times.

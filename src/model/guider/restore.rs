@@ -127,19 +127,30 @@ struct PhaseSearch<const N: usize> {
     restored: Resume,
 }
 
-/// The stages put back into the restored cells (held `..saved`) at the
-/// phases the first new data showed (held `new_from..`), searched again as
-/// more comes (`phase_refine`): early phases rest on a minute of data.
+/// The stages put back into the restored cells (before `saved`) at the
+/// phases the first new data showed (from `new_from` on; `phase_refine`),
+/// or left where a long slew's placement put them (`slew_refine`),
+/// searched again as more new data comes: early phases rest on a minute
+/// of data, and a long slew's on periods tracked far beyond the data that
+/// measured them. The cells are named by their absolute indices
+/// (`Grid::absolute`): after a slew the ring may be full, and drop its
+/// oldest cells as new ones come.
 #[derive(Clone, Copy, Debug)]
 struct Refine<const N: usize> {
-    new_from: usize,
-    saved: usize,
-    /// The stages' shares as taken out of the restored cells.
+    new_from: u64,
+    saved: u64,
+    /// The stages' shares as taken out of (or fitted to) the restored
+    /// cells.
     taken: Harmonics<N>,
     /// Where they were put back, and the restored cells' level.
     placed: ([Option<StagePhase>; N], f64),
-    /// The grid's length at the last search.
-    cells: usize,
+    /// The restored cells move to the level of what the new data holds
+    /// beyond the stages: not after a slew, where the placement's gap
+    /// lies between them (the fitted slope does not reach across it) and
+    /// `level_match` has met the new data's level.
+    moves_level: bool,
+    /// The open cell's absolute index at the last search.
+    searched: u64,
 }
 
 /// A restore in progress: the grid waiting for its first frame and the
@@ -441,34 +452,49 @@ impl<const N: usize> Restore<N> {
             });
         }
         let worm_only = resume.place == Place::Worm || !self.adds.placement_search;
-        let mut at = placement(grid, stages, time_s - resume.grid_zero_s, worm_only);
+        let x = time_s - resume.grid_zero_s;
+        let mut at = placement(grid, stages, x, worm_only);
         let end = grid.open_cell_end();
+        // The stages whose phase the placement leaves uncertain by an
+        // eighth of their period or more (what a phase search tells
+        // apart): the tracked periods' error over the placement's reach.
+        let uncertain: [bool; N] = core::array::from_fn(|s| {
+            s > 0 && 8.0 * GAP_PHASE_DRIFT * (x - at).abs() >= stages.trackers[s].period_s
+        });
+        // The stages' shares of the saved cells, fitted to be taken out
+        // where only the worm's phase is known (`stage_phases`), or to be
+        // searched again after a slew that left a stage uncertain
+        // (`slew_refine`).
+        let fits = if resume.place == Place::Worm {
+            self.adds.stage_phases
+        } else {
+            resume.slewed
+                && self.adds.slew_refine
+                && uncertain
+                    .iter()
+                    .zip(stages.gates)
+                    .any(|(&u, &g)| u && g > 0.0)
+        };
+        let fitted = if fits {
+            fit_shares(grid, stages, self.adds.recent_shares)
+        } else {
+            None
+        };
+        if resume.slewed {
+            self.refine = fitted.map(|h| refine_after_slew(grid, h, at, &uncertain));
+        }
         if resume.place == Place::Worm {
             let saved = grid.len();
             // With the stages apart, the saved cells go right before the
             // frame (no gap), the worm's share moved to its phase there;
             // the other stages' phases are found by the search.
             let worm_shift = at - end;
-            let apart = if self.adds.stage_phases {
-                take_out_stages(
-                    grid,
-                    scratch,
-                    stages,
-                    saved,
-                    worm_shift,
-                    self.adds.recent_shares,
-                )
-            } else {
-                None
-            };
+            let apart = fitted.and_then(|h| take_out_stages(grid, scratch, h, saved, worm_shift));
             if apart.is_some() {
                 at = end;
             }
-            // The first new data lands in the cell after those the frame
-            // at `at` completes.
-            let completed = libm::floor((at - end) / CELL_S) + 1.0;
             self.phase_search = Some(PhaseSearch {
-                new_from: saved + completed.max(0.0) as usize,
+                new_from: first_new_cell(grid, at),
                 wait_periods: match &apart {
                     Some(h) => stages.first_stage_search(h),
                     None => WORM_PHASE_SEARCH_PERIODS,
@@ -555,11 +581,12 @@ impl<const N: usize> Restore<N> {
                 let (phases, level) = find_stage_phases(grid, scratch, search.new_from, &h);
                 move_stages(grid, scratch, saved, &h, None, (&phases, level));
                 self.refine = self.adds.phase_refine.then_some(Refine {
-                    new_from: search.new_from,
-                    saved,
+                    new_from: grid.absolute(search.new_from),
+                    saved: grid.absolute(saved),
                     taken: h,
                     placed: (phases, level),
-                    cells: grid.len(),
+                    moves_level: true,
+                    searched: grid.absolute(grid.len()),
                 });
             }
             None => self.search_phase(grid, stages, search.new_from, !search.blocks),
@@ -580,17 +607,17 @@ impl<const N: usize> Restore<N> {
         let Some(r) = &mut self.refine else {
             return;
         };
-        if grid.len() == r.cells {
+        if grid.absolute(grid.len()) == r.searched {
             return;
         }
-        let new_cells = measured_since(grid, r.new_from) as f64;
-        // A full grid drops its oldest cells: the indices move.
-        if grid.len() >= GRID_CELLS || new_cells > STAGE_PHASE_REFINE_PERIODS * worm_cells {
+        let new_from = grid.held(r.new_from);
+        if measured_since(grid, new_from) as f64 > STAGE_PHASE_REFINE_PERIODS * worm_cells {
             self.refine = None;
             return;
         }
-        r.cells = grid.len();
-        let (found, level) = find_stage_phases(grid, scratch, r.new_from, &r.taken);
+        r.searched = grid.absolute(grid.len());
+        let (found, level) = find_stage_phases(grid, scratch, new_from, &r.taken);
+        let level = if r.moves_level { level } else { r.placed.1 };
         let mut phases = r.placed.0;
         for (phase, found) in phases.iter_mut().zip(found) {
             if let Some(found) = found.filter(StagePhase::is_clear) {
@@ -601,7 +628,7 @@ impl<const N: usize> Restore<N> {
         move_stages(
             grid,
             scratch,
-            r.saved,
+            grid.held(r.saved),
             &r.taken,
             Some(before),
             (&phases, level),
@@ -804,27 +831,72 @@ fn measured_since<S: Scalar>(grid: &Grid<S>, from: usize) -> usize {
         .count()
 }
 
-/// Fit the stages' shares of the restored cells (held `..saved` in
-/// `grid`; the newest weighing most with `recent`), move the worm's by
-/// `worm_shift` s (its share at `t` becomes what it was at `t +
-/// worm_shift`) and take every other stage's out; `None` (nothing
-/// changed) if the fit fails or no stage but the worm could be fitted.
-fn take_out_stages<S: Scalar, const N: usize>(
-    grid: &mut Grid<S>,
-    scratch: &mut [S; FFT_LEN],
+/// After a slew, the `uncertain` stages of `h` (fitted to the newest of
+/// the placed cells, [`fit_shares`]) to be searched in the new data from
+/// where the placement put them, the first new frame at grid time `at`,
+/// and moved in every placed cell; the others left as placed (not
+/// searched, not moved).
+fn refine_after_slew<S: Scalar, const N: usize>(
+    grid: &Grid<S>,
+    mut h: Harmonics<N>,
+    at: f64,
+    uncertain: &[bool; N],
+) -> Refine<N> {
+    let placed = uncertain.map(|u| u.then_some(StagePhase::PLACED));
+    for (s, _) in uncertain.iter().enumerate().skip(1).filter(|(_, &u)| !u) {
+        h.clear(s);
+    }
+    let saved = grid.absolute(grid.len());
+    Refine {
+        new_from: grid.absolute(first_new_cell(grid, at)),
+        saved,
+        taken: h,
+        placed: (placed, 0.0),
+        moves_level: false,
+        searched: saved,
+    }
+}
+
+/// The held index at which the new data starts when the first new frame
+/// comes at grid time `at`: the cell after those the frame completes.
+fn first_new_cell<S: Scalar>(grid: &Grid<S>, at: f64) -> usize {
+    let completed = libm::floor((at - grid.open_cell_end()) / CELL_S) + 1.0;
+    grid.len() + completed.max(0.0) as usize
+}
+
+/// The stages' shares of the newest of `grid`'s cells, a snapshot's worth
+/// (all of a restored grid's; after a slew, what a snapshot would have
+/// saved), fitted on their measured cells with the newest weighing most
+/// with `recent`; `None` if there are none or the fit fails.
+fn fit_shares<S: Scalar, const N: usize>(
+    grid: &Grid<S>,
     stages: Stages<'_, N>,
-    saved: usize,
-    worm_shift: f64,
     recent: bool,
 ) -> Option<Harmonics<N>> {
-    let first = grid.cell_time(0);
-    let span = grid.cell_time(saved.checked_sub(1)?) - first;
+    let len = grid.len();
+    let from = len.saturating_sub(SNAPSHOT_CELLS);
+    let first = grid.cell_time(from);
+    let span = grid.cell_time(len.checked_sub(1)?) - first;
     let periods = stages.trackers.map(|t| t.period_s);
-    let cells = (0..saved).map(|i| {
+    let measured = (from..len).map(|i| {
         let (g, v) = grid.cell(i);
         (v.to_f64() < UNMEASURED_VARIANCE).then(|| g.to_f64())
     });
-    let fitted = Harmonics::fit(cells, first, span, &periods, stages.gates, recent)?;
+    Harmonics::fit(measured, first, span, &periods, stages.gates, recent)
+}
+
+/// Of the stages' shares `fitted` to the restored cells (held `..saved`
+/// in `grid`), move the worm's by `worm_shift` s (its share at `t`
+/// becomes what it was at `t + worm_shift`) and take every other stage's
+/// out; `None` (nothing changed) if no stage but the worm was fitted.
+fn take_out_stages<S: Scalar, const N: usize>(
+    grid: &mut Grid<S>,
+    scratch: &mut [S; FFT_LEN],
+    fitted: Harmonics<N>,
+    saved: usize,
+    worm_shift: f64,
+) -> Option<Harmonics<N>> {
+    let first = grid.cell_time(0);
     if !(1..N).any(|s| fitted.has_stage(s)) {
         return None;
     }
@@ -989,7 +1061,7 @@ fn placement<S: Scalar, const N: usize>(
 
 #[cfg(test)]
 mod tests {
-    use super::WORM_PHASE_SEARCH_PERIODS;
+    use super::{GAP_PHASE_DRIFT, WORM_PHASE_SEARCH_PERIODS};
     use crate::model::guider::{Guider, GuiderConfig};
     use crate::model::snapshot::{snapshot_len, Phase, Snapshot, SNAPSHOT_CELLS, SNAPSHOT_MAX};
     use crate::testing::SplitMix64;
@@ -1205,6 +1277,45 @@ mod tests {
         assert_eq!(no_dark, None);
         // Most of the slew's cost goes.
         assert!(on - settled < 0.5 * (off - settled), "{on} {off} {settled}");
+    }
+
+    /// A meridian flip turns the gears through half a day: the placement
+    /// carries each stage's phase across it on the tracked period, whose
+    /// error (here the 155 s stage's, [`GAP_PHASE_DRIFT`] of it, as far off
+    /// as the tracked periods are taken to be) adds up to more than an
+    /// eighth of the stage's period. `slew_refine` finds the stage's phase again in the
+    /// new data; off, it stays where the placement put it. A slew whose
+    /// reach leaves the phase within an eighth of a period is not refined.
+    #[test]
+    fn after_a_flip_the_stages_phase_is_found_again_in_the_new_data() {
+        let g = learned();
+        let first_5_min = |config, jump: f64| {
+            let (mut j, _, _) = restored_into(&g, config, known(0.0));
+            run(&mut j, 0.0, 0.0, 8000.0, 8600.0, 8000.0);
+            j.trackers[1].period_s *= 1.0 + GAP_PHASE_DRIFT;
+            j.jumped();
+            let from = 8600.0 + jump;
+            // The first 30 s (15 frames), then the rest of the 5 minutes.
+            let early = run(&mut j, 0.0, 0.0, from, from + 30.0, from);
+            let refining = j.restore.refine.is_some();
+            let late = run(&mut j, 0.0, 0.0, from + 30.0, from + 300.0, from);
+            let rms = libm::sqrt((15.0 * early * early + 135.0 * late * late) / 150.0);
+            (rms, refining)
+        };
+        // Half a sidereal day.
+        let flip = 43_082.0;
+        let (on, refining) = first_5_min(*g.config(), flip);
+        let (off, _) = first_5_min(without(&g, "slew_refine"), flip);
+        let settled = {
+            let (mut j, _, _) = restored_into(&g, *g.config(), known(0.0));
+            run(&mut j, 0.0, 0.0, 8000.0, 8900.0, 8600.0)
+        };
+        std::println!("first 5 min after a flip: {on} on, {off} off; {settled} without it");
+        assert!(refining);
+        // The night's goal for a section's first minutes.
+        assert!(on < 1.2 * settled, "{on} vs {settled}");
+        assert!(off > 1.2 * settled, "{off} vs {settled}");
+        assert!(!first_5_min(*g.config(), 2_700.0).1);
     }
 
     /// Restored at a known phase, the model predicts from the first frame

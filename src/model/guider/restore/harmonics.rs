@@ -73,6 +73,13 @@ pub(super) struct StagePhase {
 }
 
 impl StagePhase {
+    /// Where a placement put the stage: no shift, picked by nothing.
+    pub(super) const PLACED: Self = Self {
+        shift_s: 0.0,
+        contrast: 0.0,
+        dof: 0,
+    };
+
     /// Whether the data picks this phase over every other at 95 %.
     pub(super) fn is_clear(&self) -> bool {
         let needed = match self.dof {
