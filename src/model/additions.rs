@@ -221,9 +221,9 @@ additions! {
     recent_shares: Restore,
     /// The restore: once the stages are put back (at the phases the first
     /// search finds), their phases are searched again over all the new
-    /// data at each new cell, up to half a worm period of it, and each
-    /// stage moved where the data picks its phase clearly. Off: they stay
-    /// where the first search put them.
+    /// data at each new measured cell, up to half a worm period of it, and
+    /// each stage moved where the data picks its phase clearly. Off: they
+    /// stay where the first search put them.
     phase_refine: Restore,
     /// A jump: after a slew whose placement reaches so far beyond the
     /// data that the tracked periods' error leaves a stage's phase

@@ -149,7 +149,8 @@ struct Refine<const N: usize> {
     /// lies between them (the fitted slope does not reach across it) and
     /// `level_match` has met the new data's level.
     moves_level: bool,
-    /// The open cell's absolute index at the last search.
+    /// The absolute index after the newest measured cell at the last
+    /// search.
     searched: u64,
 }
 
@@ -594,7 +595,7 @@ impl<const N: usize> Restore<N> {
         false
     }
 
-    /// At a new cell, until the measured new data spans
+    /// At a new measured cell, until the measured new data spans
     /// [`STAGE_PHASE_REFINE_PERIODS`]: the put-back stages' phases searched
     /// again over all of it, and each stage moved to its phase where the
     /// data picks it clearly.
@@ -607,7 +608,13 @@ impl<const N: usize> Restore<N> {
         let Some(r) = &mut self.refine else {
             return;
         };
-        if grid.absolute(grid.len()) == r.searched {
+        // Only a new measured cell tells anything new (a cloud brings
+        // none).
+        let measured_to = (0..grid.len())
+            .rev()
+            .find(|&i| grid.cell(i).1.to_f64() < UNMEASURED_VARIANCE)
+            .map_or(0, |i| i + 1);
+        if grid.absolute(measured_to) == r.searched {
             return;
         }
         let new_from = grid.held(r.new_from);
@@ -615,7 +622,7 @@ impl<const N: usize> Restore<N> {
             self.refine = None;
             return;
         }
-        r.searched = grid.absolute(grid.len());
+        r.searched = grid.absolute(measured_to);
         let (found, level) = find_stage_phases(grid, scratch, new_from, &r.taken);
         let level = if r.moves_level { level } else { r.placed.1 };
         let mut phases = r.placed.0;
@@ -1367,6 +1374,33 @@ mod tests {
         std::println!("steady {steady}, index {rms}");
         // Measured (from the first minute on): steady 0.060, index 0.058.
         assert!(rms < 1.1 * steady, "{rms} vs {steady}");
+    }
+
+    /// A cloud inside the refine's window brings no measured cell: the
+    /// refine waits for one rather than search the same data again at
+    /// every cell, and goes on after the cloud.
+    #[test]
+    fn through_a_cloud_the_refine_waits_for_measured_data() {
+        let g = learned();
+        let phase = 20_000.0;
+        let (mut r, _, _) = restored_into(&g, *g.config(), index(phase));
+        // Past the stage's first search (a twentieth of a worm period).
+        run(&mut r, phase, 5.0, 0.0, 60.0, 0.0);
+        let searched = r.restore.refine.map(|refine| refine.searched);
+        assert!(searched.is_some());
+        let mut t = 60.0;
+        while t < 660.0 {
+            r.observe(t, None, 0.0, 10.0, 2.0);
+            assert_eq!(
+                r.restore.refine.map(|refine| refine.searched),
+                searched,
+                "{t}"
+            );
+            t += 2.0;
+        }
+        run(&mut r, phase, 5.0, t, t + 30.0, t);
+        let after = r.restore.refine.map(|refine| refine.searched);
+        assert!(after.is_some() && after != searched, "{after:?}");
     }
 
     /// Night 2 starts with the guider's calibration (PHD2's, 1-3 minutes):
