@@ -3,7 +3,8 @@
 //! at 1 px, seed 1) runs through, its counters show each event for what it
 //! was, and the goals that hold are asserted at the goal (the
 //! section goal on C4, whose section after the meridian flip was the one
-//! above the guider alone); the guider's PHD2 log reads back with the
+//! above the guider alone, and the first minutes after the flip on C8);
+//! the guider's PHD2 log reads back with the
 //! replay's parser, and the logs in `data/night-logs` are what the command
 //! writes. The full sweep (C1-C8, 0 and 1 px, seeds 1-3) is the command's
 //! (docs/results.md, "A night").
@@ -249,6 +250,32 @@ fn after_a_long_re_pointing_no_section_is_above_the_guider_alone() {
         "without configured_worm and log_power_peak, seed 2: section {} {ratio:.3}",
         section + 1
     );
+}
+
+/// The meridian flip turns the gears through 43,082 s of gear time: C8's
+/// 110 s stage comes back off its phase by what its tracked period's error
+/// gathers over that, unless the new data finds the phase again
+/// (`slew_refine`). The section after the flip (the fourth), C8 at 1 px,
+/// seeds 1 and 2: its first 5 minutes within the goal with the addition,
+/// above it without.
+#[test]
+fn after_the_meridian_flip_the_first_minutes_keep_to_the_goal() {
+    let c = case("C8");
+    let after_flip = |seed, additions| {
+        let run = night::run(&c, Firmware::Mkgp, 1.0, seed, DEFAULT, additions, false).unwrap();
+        let section_4 = goals::first_ratios(&run).nth(3).unwrap();
+        section_4
+    };
+    let mut without = Additions::ALL;
+    without.set("slew_refine", false).unwrap();
+    for seed in [1, 2] {
+        let (on, off) = (after_flip(seed, Additions::ALL), after_flip(seed, without));
+        assert!(goals::meets(on, goals::FIRST), "seed {seed}: {on:.3}");
+        assert!(
+            !goals::meets(off, goals::FIRST),
+            "seed {seed}, without slew_refine: {off:.3}"
+        );
+    }
 }
 
 /// The rows of a log's CSV below its header, as numbers.
