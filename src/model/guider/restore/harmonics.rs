@@ -18,6 +18,7 @@ use core::f64::consts::TAU;
 use crate::model::gp::grid::CELL_S;
 use crate::model::gp::kernel::ENVELOPE_PERIODS;
 use crate::model::ldlt::Ldlt;
+use crate::model::numeric::approx::exp_nonpositive;
 use crate::model::numeric::cos_sin::cos_sin;
 
 /// Harmonics fitted per stage (the synthetic gears have up to the worm's
@@ -251,7 +252,11 @@ impl<const N: usize> Harmonics<N> {
             let Some(y) = y else { continue };
             let t = first + CELL_S * k as f64;
             let x = basis((t - h.t_ref) / half_span, &phasors, &fitted);
-            let w = libm::exp(envelope_coeff * (newest - t) * (newest - t));
+            // A weight needs no more than f32's precision, and the target's
+            // f32 exponential keeps libm's f64 one out of its flash.
+            let w = f64::from(exp_nonpositive(
+                (envelope_coeff * (newest - t) * (newest - t)) as f32,
+            ));
             for (i, (&xi, b)) in x.iter().zip(&mut rhs).take(terms).enumerate() {
                 *b += w * xi * y;
                 for (a, &xj) in normal.row_mut(i).iter_mut().zip(&x) {
