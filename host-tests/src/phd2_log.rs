@@ -43,9 +43,10 @@ use row::{Columns, Star};
 use search_region::StarTrack;
 use std::path::{Path, PathBuf};
 
-/// One guide frame with a star.
+/// One guide row of a log, with a star (the firmware's frame is
+/// `mkgp_mount::mount::frame::Frame`).
 #[derive(Debug, Clone, PartialEq)]
-pub struct Frame {
+pub struct GuideRow {
     /// 1-based line in the log.
     pub line: usize,
     pub frame: u64,
@@ -101,7 +102,7 @@ pub struct Section {
     /// none), in seconds.
     pub exposure_s: f64,
     pub header: Header,
-    pub frames: Vec<Frame>,
+    pub frames: Vec<GuideRow>,
     pub events: Vec<Event>,
 }
 
@@ -207,8 +208,8 @@ impl Rows {
         Ok(())
     }
 
-    fn frame(&self, line: usize, frame: u64, time_s: f64, star: &Star) -> Frame {
-        Frame {
+    fn frame(&self, line: usize, frame: u64, time_s: f64, star: &Star) -> GuideRow {
+        GuideRow {
             line,
             frame,
             time_s,

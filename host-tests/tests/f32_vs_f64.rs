@@ -47,7 +47,7 @@ const NOISE: Noise = Noise::Gaussian {
 
 /// One frame as the `f64` guider saw it, and its control.
 #[derive(Clone, Copy)]
-struct Frame {
+struct Recorded {
     time_s: f64,
     input: f64,
     snr: f64,
@@ -58,13 +58,13 @@ struct Frame {
 /// Passes the frames through to `inner` and records them.
 struct Recorder<C> {
     inner: C,
-    frames: Vec<Frame>,
+    frames: Vec<Recorded>,
 }
 
 impl<C: GuideAlgorithm> GuideAlgorithm for Recorder<C> {
     fn step(&mut self, t: f64, measured: f64, snr: f64, dt: f64) -> f64 {
         let control = self.inner.step(t, measured, snr, dt);
-        self.frames.push(Frame {
+        self.frames.push(Recorded {
             time_s: t,
             input: measured,
             snr,
@@ -104,7 +104,7 @@ fn rel(pair: (f64, f64)) -> f64 {
     pair.1 / pair.0 - 1.0
 }
 
-fn recorded<C: GuideAlgorithm>(case: &Case, inner: C, noise: Noise) -> (f64, Vec<Frame>) {
+fn recorded<C: GuideAlgorithm>(case: &Case, inner: C, noise: Noise) -> (f64, Vec<Recorded>) {
     let mut rec = Recorder {
         inner,
         frames: Vec::new(),
@@ -123,7 +123,7 @@ fn recorded<C: GuideAlgorithm>(case: &Case, inner: C, noise: Noise) -> (f64, Vec
 }
 
 /// (a): the per-frame control differences of two recorded runs.
-fn compare(case: &str, f64_run: &[Frame], f32_run: &[Frame]) -> (f64, f64, f64) {
+fn compare(case: &str, f64_run: &[Recorded], f32_run: &[Recorded]) -> (f64, f64, f64) {
     let (mut sum_sq, mut max, mut max_at) = (0.0, 0.0, 0.0);
     let (mut u64_applied, mut u32_applied) = (0.0, 0.0);
     for (a, b) in f64_run.iter().zip(f32_run) {
@@ -153,7 +153,7 @@ fn compare(case: &str, f64_run: &[Frame], f32_run: &[Frame]) -> (f64, f64, f64) 
 
 /// The `f64` run's frames fed unchanged to an `f32` guider (see the module
 /// documentation): RMS of the control difference and the largest |U32 - U64|.
-fn uncorrected_replay<const N: usize>(frames: &[Frame]) -> (f64, f64) {
+fn uncorrected_replay<const N: usize>(frames: &[Recorded]) -> (f64, f64) {
     let mut guider = Box::new(Guider::<f32, N>::new(GuiderConfig::default()));
     let (mut sum_sq, mut du, mut max_du) = (0.0, 0.0, 0.0f64);
     for f in frames {

@@ -296,7 +296,7 @@ fn the_phd2_log_reads_back() {
     // Every guide row, in order, with its section's time; one section per
     // start, each with its own exposure.
     assert_eq!(log.sections.len(), starts().len());
-    let frames: Vec<&phd2_log::Frame> = log.sections.iter().flat_map(|s| &s.frames).collect();
+    let frames: Vec<&phd2_log::GuideRow> = log.sections.iter().flat_map(|s| &s.frames).collect();
     assert_eq!(frames.len(), truth.len());
     for (f, t) in frames.iter().zip(&truth) {
         assert_eq!(f.frame, t[1] as u64);
