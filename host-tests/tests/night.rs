@@ -14,7 +14,7 @@ use host_tests::data::{self, cases_file};
 use host_tests::night::goals;
 use host_tests::night::ledger::Activity;
 use host_tests::night::script::{self, Kind, Way, What, DEFAULT};
-use host_tests::night::session::{learner_header, TRUTH_HEADER};
+use host_tests::night::session::{learner_header, FIRST_S, TRUTH_HEADER};
 use host_tests::night::{self, NightRun, MAX_RATE_SIDEREAL};
 use host_tests::phd2_log;
 use host_tests::st4_sim::Firmware;
@@ -125,6 +125,14 @@ fn the_night_runs_through_and_the_counters_say_what_happened() {
         assert_eq!(run.sections.len(), starts().len());
         for s in &run.sections {
             assert!(s.all.n > 0 && s.first.n > 0 && s.settled.n > 0, "{s:?}");
+            // The later windows are whole FIRST_S of guiding within the
+            // settled part, one after another.
+            assert!(!s.later.is_empty(), "{s:?}");
+            assert!(s.later.iter().all(|w| w.seconds() <= FIRST_S), "{s:?}");
+            assert!(
+                s.later.iter().map(|w| w.n).sum::<u64>() <= s.settled.n,
+                "{s:?}"
+            );
         }
         let e = run.extremes;
         assert_eq!(e.non_finite, 0);

@@ -128,7 +128,9 @@ enum Command {
     /// settling, downloads (10-30 s), refocus pauses, a star lost, 20 minutes of
     /// clouds. Pointing RMS (arcsec = px) while the main camera images, per
     /// section, for the whole night, and for each section's first 5 minutes,
-    /// for the guider alone, fw PPEC and fw MKGP; then the goals. Default: C1-C8,
+    /// for the guider alone, fw PPEC and fw MKGP; then the goals, and per
+    /// section how many first and later 5 minutes are above the first
+    /// minutes' bar (the spread that bar meets anywhere). Default: C1-C8,
     /// noise 0 and 1 px, seeds 1-3 (48 nights, progress on stderr); --case,
     /// --noise and --seed pick one. One night prints its sections and what the
     /// firmware counted. --phd2-log FILE (one night) writes the guider alone's
@@ -1187,6 +1189,32 @@ fn print_night_goals(nights: &[night::Night]) {
             println!("goal, {name}: {verdict} (holds on {ok} of {of} nights)");
         }
     }
+    print_later_windows(nights);
+}
+
+/// The first-minutes bar on every later 5 min of each section: how far
+/// the first minutes stand out from the section's own spread.
+fn print_later_windows(nights: &[night::Night]) {
+    use night::goals::{self, FIRST};
+    let tallies = goals::window_tallies(nights);
+    println!(
+        "fw MKGP's 5 min windows above {FIRST} x the rest of their section's settled figure, \
+         the first and each later one (a window with half the first's imaging or more):"
+    );
+    println!("{:<8} {:>12} {:>14}", "section", "first", "later");
+    for (i, t) in tallies.iter().enumerate().skip(1) {
+        println!(
+            "{:<8} {:>12} {:>14}",
+            i + 1,
+            format!("{}/{}", t.first_above, t.firsts),
+            format!("{}/{}", t.later_above, t.laters)
+        );
+    }
+    println!(
+        "first 5 min like any later 5 min of their section: the goal would hold on {:.1} of {} nights",
+        goals::nights_if_like_later(nights, &tallies),
+        nights.len()
+    );
 }
 
 fn cmd_population(

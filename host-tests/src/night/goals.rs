@@ -66,6 +66,77 @@ pub fn first_ratios(run: &NightRun) -> impl Iterator<Item = f64> + '_ {
     })
 }
 
+/// Each later window of each section after the first (its index), over
+/// the section's settled figure without it: the first minutes' ratio taken
+/// anywhere else in the section, where nothing was carried over. A window
+/// with less than half the first minutes' imaging (a refocus, clouds) is
+/// left out.
+pub fn later_ratios(run: &NightRun) -> impl Iterator<Item = (usize, f64)> + '_ {
+    run.sections.iter().enumerate().skip(1).flat_map(|(i, s)| {
+        s.later
+            .iter()
+            .filter(|w| 2 * w.n >= s.first.n)
+            .map(move |&w| (i, w.rms() / (s.settled - w).rms()))
+            .filter(|(_, r)| r.is_finite())
+    })
+}
+
+/// The first-minutes bar ([`FIRST`]) on one section of the night (0-based
+/// index), over a set of nights: how many first windows and how many later
+/// windows ([`later_ratios`]) are above it.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct WindowTally {
+    pub first_above: usize,
+    pub firsts: usize,
+    pub later_above: usize,
+    pub laters: usize,
+}
+
+impl WindowTally {
+    /// The share of later windows within the bar (1 with none).
+    pub fn later_within(&self) -> f64 {
+        if self.laters == 0 {
+            1.0
+        } else {
+            1.0 - self.later_above as f64 / self.laters as f64
+        }
+    }
+}
+
+/// Per section, fw MKGP's windows against [`FIRST`] over `nights`.
+pub fn window_tallies(nights: &[Night]) -> Vec<WindowTally> {
+    let mut t: Vec<WindowTally> = Vec::new();
+    for n in nights {
+        let run = &n.fw_mkgp;
+        t.resize(t.len().max(run.sections.len()), WindowTally::default());
+        for (i, r) in first_ratios(run).enumerate().skip(1) {
+            t[i].firsts += 1;
+            t[i].first_above += usize::from(!meets(r, FIRST));
+        }
+        for (i, r) in later_ratios(run) {
+            t[i].laters += 1;
+            t[i].later_above += usize::from(!meets(r, FIRST));
+        }
+    }
+    t
+}
+
+/// On how many of `nights` the first-minutes goal would hold if each
+/// section's first minutes were like any of its later windows: the sum over
+/// the nights of the product over their sections after the first of the
+/// share of that section's later windows within the bar (`tallies`, over
+/// the same nights).
+pub fn nights_if_like_later(nights: &[Night], tallies: &[WindowTally]) -> f64 {
+    nights
+        .iter()
+        .map(|n| {
+            (1..n.fw_mkgp.sections.len())
+                .map(|i| tallies.get(i).map_or(1.0, WindowTally::later_within))
+                .product::<f64>()
+        })
+        .sum()
+}
+
 pub fn figures(n: &Night) -> Figures {
     Figures {
         whole: n.fw_mkgp.night().rms() / n.guider_only.night().rms(),

@@ -46,6 +46,18 @@ impl std::ops::Add for Rms {
     }
 }
 
+impl std::ops::Sub for Rms {
+    type Output = Rms;
+
+    /// The samples of `self` without those of `other`, a part of them.
+    fn sub(self, other: Rms) -> Rms {
+        Rms {
+            sum_sq: self.sum_sq - other.sum_sq,
+            n: self.n - other.n,
+        }
+    }
+}
+
 /// What the guider or the mount was doing while a window lasted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Activity {

@@ -55,13 +55,16 @@ fn secs(us: u64) -> f64 {
 }
 
 /// The section's score: imaging over the whole section, over its first
-/// [`FIRST_S`] of guiding and after.
+/// [`FIRST_S`] of guiding and after, and over each later [`FIRST_S`] of
+/// guiding that the section holds whole (the spread a window that long
+/// has anywhere in the section).
 #[derive(Debug, Clone, PartialEq)]
 pub struct SectionScore {
     pub section: Section,
     pub all: Rms,
     pub first: Rms,
     pub settled: Rms,
+    pub later: Vec<Rms>,
 }
 
 /// What a PHD2-like guider on its own would log, with the truth beside it.
@@ -165,9 +168,17 @@ struct Active {
     /// The interruption that settling follows, and since when.
     interrupted: Option<(Activity, u64)>,
     score_from: (f64, u64),
-    first_mark: Option<(f64, u64)>,
+    /// The rig's running sums at each [`FIRST_S`] of guiding.
+    marks: Vec<(f64, u64)>,
     mass: f64,
     snr: f64,
+}
+
+impl Active {
+    /// When the running sums are read next: every [`FIRST_S`] of guiding.
+    fn next_mark_us(&self) -> u64 {
+        self.guide_start_us + us(FIRST_S) * (self.marks.len() as u64 + 1)
+    }
 }
 
 /// A reply sink that drops the port's replies (the night reads none).
@@ -392,8 +403,8 @@ impl Session {
             }
             d.extend(a.hidden_until_us);
             d.extend(a.paused_until_us);
-            if a.first_mark.is_none() && matches!(a.phase, Phase::Guiding) {
-                d.push(a.guide_start_us + us(FIRST_S));
+            if matches!(a.phase, Phase::Guiding) {
+                d.push(a.next_mark_us());
             }
         }
         d.into_iter().min()
@@ -414,11 +425,8 @@ impl Session {
         let Some(a) = self.section.as_mut() else {
             return;
         };
-        if a.first_mark.is_none()
-            && matches!(a.phase, Phase::Guiding)
-            && a.guide_start_us + us(FIRST_S) <= now
-        {
-            a.first_mark = Some(self.rig.score_sums());
+        if matches!(a.phase, Phase::Guiding) && a.next_mark_us() <= now {
+            a.marks.push(self.rig.score_sums());
         }
         let resumed = a.paused_until_us.is_some_and(|t| t <= now);
         if resumed {
@@ -655,7 +663,7 @@ impl Session {
             paused_until_us: None,
             interrupted: None,
             score_from: (0.0, 0),
-            first_mark: None,
+            marks: Vec::new(),
             mass: 12_000.0 + 1_000.0 * index as f64,
             snr: 25.0 + 3.0 * index as f64,
         });
@@ -683,12 +691,17 @@ impl Session {
             self.window(Activity::Calibration, c.began_us);
         }
         let end = self.rig.score_sums();
-        let first_end = a.first_mark.unwrap_or(end);
+        let first_end = a.marks.first().copied().unwrap_or(end);
         self.sections.push(SectionScore {
             section: a.spec,
             all: Rms::between(a.score_from, end),
             first: Rms::between(a.score_from, first_end),
             settled: Rms::between(first_end, end),
+            later: a
+                .marks
+                .windows(2)
+                .map(|w| Rms::between(w[0], w[1]))
+                .collect(),
         });
         if let Some(w) = self.writer() {
             w.guiding_ends(secs(now));
