@@ -9,6 +9,7 @@
 //!   the first within [`FIRST`] of that section's settled figure (fw
 //!   MKGP's own, after those first minutes).
 
+use super::session::SectionScore;
 use super::{Night, NightRun};
 
 pub const WHOLE_NIGHT: f64 = 0.8;
@@ -57,13 +58,15 @@ pub fn section_ratios<'a>(
 /// Each section's first minutes over its settled figure (NaN for the
 /// first section, which has nothing to carry over).
 pub fn first_ratios(run: &NightRun) -> impl Iterator<Item = f64> + '_ {
-    run.sections.iter().enumerate().map(|(i, s)| {
-        if i == 0 {
-            f64::NAN
-        } else {
-            s.first.rms() / s.settled.rms()
-        }
-    })
+    run.sections
+        .iter()
+        .enumerate()
+        .map(|(i, s)| if i == 0 { f64::NAN } else { first_ratio(s) })
+}
+
+/// A section's first minutes over its settled figure.
+fn first_ratio(s: &SectionScore) -> f64 {
+    s.first.rms() / s.settled.rms()
 }
 
 /// Each later window of each section after the first (its index), over
@@ -71,8 +74,8 @@ pub fn first_ratios(run: &NightRun) -> impl Iterator<Item = f64> + '_ {
 /// anywhere else in the section, where nothing was carried over. A window
 /// with less than half the first minutes' imaging (a refocus, clouds) is
 /// left out.
-pub fn later_ratios(run: &NightRun) -> impl Iterator<Item = (usize, f64)> + '_ {
-    run.sections.iter().enumerate().skip(1).flat_map(|(i, s)| {
+pub fn later_ratios(sections: &[SectionScore]) -> impl Iterator<Item = (usize, f64)> + '_ {
+    sections.iter().enumerate().skip(1).flat_map(|(i, s)| {
         s.later
             .iter()
             .filter(|w| 2 * w.n >= s.first.n)
@@ -105,20 +108,24 @@ impl WindowTally {
 
 /// Per section, fw MKGP's windows against [`FIRST`] over `nights`.
 pub fn window_tallies(nights: &[Night]) -> Vec<WindowTally> {
-    let mut t: Vec<WindowTally> = Vec::new();
+    let mut t = Vec::new();
     for n in nights {
-        let run = &n.fw_mkgp;
-        t.resize(t.len().max(run.sections.len()), WindowTally::default());
-        for (i, r) in first_ratios(run).enumerate().skip(1) {
-            t[i].firsts += 1;
-            t[i].first_above += usize::from(!meets(r, FIRST));
-        }
-        for (i, r) in later_ratios(run) {
-            t[i].laters += 1;
-            t[i].later_above += usize::from(!meets(r, FIRST));
-        }
+        tally(&mut t, &n.fw_mkgp.sections);
     }
     t
+}
+
+/// Add one night's `sections` to the per-section tallies `t`.
+fn tally(t: &mut Vec<WindowTally>, sections: &[SectionScore]) {
+    t.resize(t.len().max(sections.len()), WindowTally::default());
+    for (i, s) in sections.iter().enumerate().skip(1) {
+        t[i].firsts += 1;
+        t[i].first_above += usize::from(!meets(first_ratio(s), FIRST));
+    }
+    for (i, r) in later_ratios(sections) {
+        t[i].laters += 1;
+        t[i].later_above += usize::from(!meets(r, FIRST));
+    }
 }
 
 /// On how many of `nights` the first-minutes goal would hold if each
@@ -220,4 +227,63 @@ pub fn csv_rows(n: &Night) -> Vec<String> {
         night.rms()
     ));
     rows
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::night::ledger::Rms;
+    use crate::night::script::{What, DEFAULT};
+
+    /// `seconds` of samples at `rms` arcsec.
+    fn rms(rms: f64, seconds: u64) -> Rms {
+        let n = seconds * 1_000_000 / crate::st4_sim::SAMPLE_US;
+        Rms {
+            sum_sq: rms * rms * n as f64,
+            n,
+        }
+    }
+
+    fn section(first: Rms, later: Vec<Rms>) -> SectionScore {
+        let What::Start(spec) = DEFAULT[0].what else {
+            panic!("the default night starts with a section");
+        };
+        let settled = later.iter().fold(Rms::default(), |a, &w| a + w);
+        SectionScore {
+            section: spec,
+            all: first + settled,
+            first,
+            settled,
+            later,
+        }
+    }
+
+    /// Each later window against the rest of its section without it; a
+    /// window with less than half the first's imaging is left out; the
+    /// first section counts for nothing.
+    #[test]
+    fn the_later_windows_are_tallied_against_the_rest_of_their_section() {
+        let one = rms(1.0, 300);
+        let sections = [
+            section(rms(9.0, 300), vec![one, rms(9.0, 300)]),
+            // The first 1.4 against the settled 1.10: above. Later, 1.3
+            // against the rest (1.0): above; each 1.0 against the rest (1.0
+            // and 1.3: 1.14) within; the thin window (100 s) left out.
+            section(rms(1.4, 300), vec![one, one, rms(1.3, 300), rms(1.0, 100)]),
+        ];
+        let mut t = Vec::new();
+        tally(&mut t, &sections);
+        assert_eq!(t[0], WindowTally::default());
+        assert_eq!(
+            t[1],
+            WindowTally {
+                first_above: 1,
+                firsts: 1,
+                later_above: 1,
+                laters: 3,
+            }
+        );
+        assert!((t[1].later_within() - 2.0 / 3.0).abs() < 1e-12);
+        assert_eq!(WindowTally::default().later_within(), 1.0);
+    }
 }
