@@ -199,6 +199,14 @@ impl<const N: usize> Learner<N> {
         self.feed_forward_weight.weight()
     }
 
+    /// The steps of the star measured and taken off every observation so
+    /// far, arcsec (`super::guiding::bump`): a dither below the dither
+    /// threshold moves the lock by as much, and is in the data unless
+    /// this took it.
+    pub fn step_level(&self) -> f64 {
+        self.bump.level()
+    }
+
     /// Write the learned model, the pulse share and weight into `out` (at
     /// most [`RECORD_MAX`] bytes; store it as [`RECORD_FORMAT`]); returns the
     /// length. Not per frame: it reads a thousand cells. Refused after a

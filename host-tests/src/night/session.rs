@@ -90,12 +90,13 @@ pub const TRUTH_HEADER: &str =
 /// pointing and the guider's RA correction (px), the share of the pulses
 /// carried out, the part of a pulse learned, the feed-forward's weight, the
 /// model's blend weight, the frames the learner took and learned and the
-/// framer filled so far, and each stage's tracked period (s) and gate
-/// (0: the stage is not in the model).
+/// framer filled so far, the steps of the star taken off its observations
+/// so far (px; a dither's move is one), and each stage's tracked period
+/// (s) and gate (0: the stage is not in the model).
 pub fn learner_header() -> String {
     String::from(
         "section,frame,time_s,gear_time_s,pointing_px,guide_px,pulse_share,pulse_weight,\
-         feed_forward_weight,blend_weight,frames,learned,filled_frames",
+         feed_forward_weight,blend_weight,frames,learned,filled_frames,step_level_px",
     ) + &trace::stage_header(FIRMWARE_STAGES)
 }
 
@@ -913,12 +914,13 @@ impl Session {
         let l = self.rig.mkgp_learner()?;
         let mut r = format!(
             "{section},{frame},{time_s:.3},{gear_time:.3},{:.4},{guide_px:.4},{share:.4},\
-             {weight:.4},{:.4},{:.4},{},{},{filled}",
+             {weight:.4},{:.4},{:.4},{},{},{filled},{:.4}",
             e.pointing_arcsec,
             l.feed_forward_weight(),
             l.guider().blend_weight(),
             counters.frames,
             counters.learned,
+            l.step_level(),
         );
         r += &trace::stage_values(l.guider());
         Some(r)
