@@ -83,6 +83,12 @@ additions! {
     /// a shadow of the guider alone (`mount::guiding::feed_forward_weight`).
     /// Off: the feed-forward in full.
     feed_forward_weight: Firmware,
+    /// The learner: the feed-forward weight's windows (its means, the
+    /// frames before it moves) last no longer than at 2 s frames, as the
+    /// trust's do with `trust_by_time`; behind longer frames their counts
+    /// are cut in proportion (`mount::guiding::feed_forward_weight`). Off:
+    /// the same counts whatever the frames' length.
+    weight_by_time: Firmware,
     /// The learner: the share and the pulse weight are saved with the
     /// model and taken back with it. Off: a restored learner starts with
     /// every pulse in full, to earn them again.
@@ -293,6 +299,7 @@ mod tests {
             "earned_share",
             "feed_forward_horizon",
             "feed_forward_weight",
+            "weight_by_time",
             "calibration_watch",
             "calibration_share",
             "share_to_interval",

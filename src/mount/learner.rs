@@ -418,12 +418,18 @@ impl<const N: usize> Learner<N> {
         // stays in full.
         let pulses_in_full = !adds.earned_share || self.share.fraction() >= 1.0;
         match sane.filter(|_| !settling && adds.feed_forward_weight) {
-            Some(_) => self.feed_forward_weight.measured(
-                frame.gear_error_arcsec - level as f32,
-                frame.applied_arcsec - level as f32,
-                self.guider.config().control_gain,
-                self.guider.blend_weight() > 0.0 && pulses_in_full,
-            ),
+            Some(_) => {
+                if adds.weight_by_time {
+                    self.feed_forward_weight
+                        .frame_interval(d.min(MAX_TIME_STEP_S) as f32);
+                }
+                self.feed_forward_weight.measured(
+                    frame.gear_error_arcsec - level as f32,
+                    frame.applied_arcsec - level as f32,
+                    self.guider.config().control_gain,
+                    self.guider.blend_weight() > 0.0 && pulses_in_full,
+                )
+            }
             None => self.feed_forward_weight.interrupt(),
         }
         let weight = self.feed_forward_weight.weight() as f64;
@@ -709,19 +715,27 @@ mod tests {
         assert_eq!(restored(Some("saved_share")), (1.0, 1.0));
     }
 
-    /// A closed loop of `frames` 2 s frames on a worm of 8 arcsec: a
-    /// proportional guider of the assumed aggressiveness, the firmware
-    /// applying `scale` times the feed-forward it is given (a mount that
-    /// moves `scale` times what its configuration says). Returns the
-    /// feed-forward's weight and the RMS of the guider's measured error
-    /// over the last half.
-    fn closed_loop(l: &mut Learner<1>, scale: f64, frames: u32) -> (f32, f64) {
+    /// A closed loop of `frames` frames `frame_s` apart on a worm of 8
+    /// arcsec: a proportional guider of the assumed aggressiveness, the
+    /// firmware applying `scale` times the feed-forward it is given (a
+    /// mount that moves `scale` times what its configuration says).
+    /// Returns the feed-forward's weight, the RMS of the guider's measured
+    /// error over the last half, and the frame the weight first moved at.
+    fn closed_loop(
+        l: &mut Learner<1>,
+        scale: f64,
+        frames: u32,
+        frame_s: f64,
+    ) -> (f32, f64, Option<u32>) {
         let gear = |t: f64| 8.0 * libm::sin(2.0 * core::f64::consts::PI * t / 478.7);
         let (mut applied, mut rate, mut sum) = (0.0, 0.0, 0.0);
+        let mut moved = None;
         for k in 0..frames {
-            let t = 2.0 * k as f64;
+            let t = frame_s * k as f64;
             let pulse = 0.7 * (gear(t) - applied);
             let ff = l.learn(Frame {
+                gear_time_s: t,
+                interval_s: frame_s as f32,
                 gear_error_arcsec: (applied + pulse / 0.7) as f32,
                 applied_arcsec: applied as f32,
                 ..measured(k, 0.0, pulse as f32)
@@ -729,12 +743,16 @@ mod tests {
             if k >= frames / 2 {
                 sum += (pulse / 0.7) * (pulse / 0.7);
             }
-            applied += pulse + scale * rate * 2.0;
+            if moved.is_none() && l.feed_forward_weight() < 1.0 {
+                moved = Some(k);
+            }
+            applied += pulse + scale * rate * frame_s;
             rate = ff.rate_arcsec_per_s as f64;
         }
         (
             l.feed_forward_weight(),
             libm::sqrt(sum / (frames / 2) as f64),
+            moved,
         )
     }
 
@@ -742,15 +760,27 @@ mod tests {
     fn a_feed_forward_that_overshoots_earns_a_part_and_without_the_weight_keeps_all() {
         let m = MountConfig::default().validate().unwrap();
         let mut right: std::boxed::Box<Learner<1>> = std::boxed::Box::new(Learner::new(&m));
-        let (weight, good) = closed_loop(&mut right, 1.0, 3000);
+        let (weight, good, _) = closed_loop(&mut right, 1.0, 3000, 2.0);
         assert_eq!(weight, 1.0);
         let mut over: std::boxed::Box<Learner<1>> = std::boxed::Box::new(Learner::new(&m));
-        let (weight, held) = closed_loop(&mut over, 3.0, 3000);
+        let (weight, held, _) = closed_loop(&mut over, 3.0, 3000, 2.0);
         assert!((weight - 1.0 / 3.0).abs() < 0.1, "{weight}");
         let mut off = without("feed_forward_weight");
-        let (weight, left) = closed_loop(&mut off, 3.0, 3000);
+        let (weight, left, _) = closed_loop(&mut off, 3.0, 3000, 2.0);
         assert_eq!(weight, 1.0);
         assert!(held < left, "{good} {held} {left}");
+    }
+
+    #[test]
+    fn behind_longer_frames_the_weight_moves_sooner_and_without_weight_by_time_as_late() {
+        // The overshooting mount behind 4 s frames: the weight moves after
+        // half the scored frames; without the addition, after all of them.
+        let m = MountConfig::default().validate().unwrap();
+        let mut with: std::boxed::Box<Learner<1>> = std::boxed::Box::new(Learner::new(&m));
+        let (_, _, sooner) = closed_loop(&mut with, 3.0, 1500, 4.0);
+        let (_, _, later) = closed_loop(&mut without("weight_by_time"), 3.0, 1500, 4.0);
+        let (sooner, later) = (sooner.unwrap(), later.unwrap());
+        assert_eq!(later - sooner, 100, "{sooner} {later}");
     }
 
     /// A learner restored from another's bytes holds the same model and

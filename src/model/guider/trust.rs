@@ -33,6 +33,7 @@
 use super::control_law::Law;
 use super::HYSTERESIS;
 use crate::model::additions::Additions;
+use crate::model::numeric::frame_interval::FrameInterval;
 
 /// Frames a mean square averages over (about half an hour at 2 s frames; a
 /// worm period or more of a modest worm, so that its slopes both ways
@@ -55,15 +56,6 @@ const MARGIN: f64 = 0.001;
 /// a fraction of the noise, so their comparison needs more frames than the
 /// model's (with 200, PHD2 log 03 switched on too few and lost 0.2 %).
 const LAW_MIN_SCORED: f64 = 400.0;
-/// The frame interval the counts above are for, s. A window lasts no
-/// longer than it does at this interval: behind longer frames the gear
-/// moves on further within it (a stage that fades, a model gone wrong),
-/// and the count is cut in proportion. Shorter frames keep the count, the
-/// comparison's statistics.
-const COUNTED_FRAME_S: f64 = 2.0;
-/// Frames the measured frame interval averages over: a gap (a download, a
-/// lost star) moves it by a fraction of its length over this.
-const INTERVAL_FRAMES: f64 = 32.0;
 /// The proportional shadow must beat the hysteretic one by this fraction of
 /// its mean square before the guider switches to it.
 const LAW_MARGIN: f64 = 0.01;
@@ -134,9 +126,8 @@ pub(super) struct Trust {
     reactive_scores: [MeanSquare; 2],
     scored: f64,
     weight: f64,
-    /// The frame interval the windows are counted in, s (0: none measured
-    /// yet).
-    frame_s: f64,
+    /// The frame interval the windows are counted in (`trust_by_time`).
+    interval: FrameInterval<f64>,
 }
 
 impl Trust {
@@ -165,7 +156,7 @@ impl Trust {
         adds: &Additions,
     ) -> f64 {
         if adds.trust_by_time {
-            self.measure_interval(time_step);
+            self.interval.measure(time_step);
         }
         let hysteretic = Law {
             hysteresis: HYSTERESIS,
@@ -188,7 +179,7 @@ impl Trust {
         } else {
             *self = Self {
                 weight: 0.0,
-                frame_s: self.frame_s,
+                interval: self.interval,
                 ..Self::default()
             };
         }
@@ -208,7 +199,7 @@ impl Trust {
     /// Without the addition `trust_rescore` the old score stands.
     pub fn stages_changed(&mut self, adds: &Additions) {
         if adds.trust_rescore {
-            self.scored = self.scored.min(self.frames(MIN_SCORED));
+            self.scored = self.scored.min(self.interval.frames(MIN_SCORED));
         }
     }
 
@@ -217,12 +208,12 @@ impl Trust {
     /// the guider may choose it (`law_choice`), else the hysteresis.
     fn move_weight(&mut self, model: f64, reactive: [f64; 2], law_choice: bool) {
         self.scored += 1.0;
-        let window = self.frames(SCORE_FRAMES);
+        let window = self.interval.frames(SCORE_FRAMES);
         self.model_score.add(model, self.scored, window);
         for (score, r) in self.reactive_scores.iter_mut().zip(reactive) {
             score.add(r, self.scored, window);
         }
-        if self.scored < self.frames(MIN_SCORED) {
+        if self.scored < self.interval.frames(MIN_SCORED) {
             return;
         }
         let [h, p] = self.reactive_scores.map(|s| s.0);
@@ -236,39 +227,15 @@ impl Trust {
         self.weight = self.weight.clamp(0.0, 1.0);
     }
 
-    /// Follow the frame interval: the first time step sets it, later ones
-    /// move it by a share of [`INTERVAL_FRAMES`].
-    fn measure_interval(&mut self, time_step: f64) {
-        if !(time_step.is_finite() && time_step > 0.0) {
-            return;
-        }
-        if self.frame_s > 0.0 {
-            self.frame_s += (time_step - self.frame_s) / INTERVAL_FRAMES;
-        } else {
-            self.frame_s = time_step;
-        }
-    }
-
-    /// A count of frames at [`COUNTED_FRAME_S`], cut in proportion where
-    /// the measured frames are longer (none measured without the addition
-    /// `trust_by_time`).
-    fn frames(&self, count: f64) -> f64 {
-        if self.frame_s > COUNTED_FRAME_S {
-            count * COUNTED_FRAME_S / self.frame_s
-        } else {
-            count
-        }
-    }
-
     /// Score the two reactive laws' measurements and switch the law when
     /// one is measured better.
     fn choose_law(&mut self, reactive: [f64; 2]) {
         self.law_scored += 1.0;
-        let window = self.frames(SCORE_FRAMES);
+        let window = self.interval.frames(SCORE_FRAMES);
         for (score, r) in self.law_scores.iter_mut().zip(reactive) {
             score.add(r, self.law_scored, window);
         }
-        if self.law_scored < self.frames(LAW_MIN_SCORED) {
+        if self.law_scored < self.interval.frames(LAW_MIN_SCORED) {
             return;
         }
         let [h, p] = self.law_scores.map(|s| s.0);
@@ -317,7 +284,7 @@ mod tests {
         hysteresis: HYSTERESIS,
     };
 
-    const FRAME_S: f64 = COUNTED_FRAME_S;
+    const FRAME_S: f64 = crate::model::numeric::frame_interval::COUNTED_FRAME_S;
     const MIN_SCORED: usize = super::MIN_SCORED as usize;
     const LAW_MIN_SCORED: usize = super::LAW_MIN_SCORED as usize;
 

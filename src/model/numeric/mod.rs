@@ -1,12 +1,14 @@
 //! Numerics: the scalar type the model computes in (`f64` on the host as
 //! the reference, `f32` on the target), accurate `f32` approximations of the
 //! few transcendental functions it needs, the `f64` cosine and sine of the
-//! phases set up in `f64`, and the inner products, portable
-//! and hand-scheduled for the Cortex-M4F.
+//! phases set up in `f64`, the inner products, portable and hand-scheduled
+//! for the Cortex-M4F, and the frame interval that scales the counts of
+//! frames a loop is judged over.
 
 pub mod approx;
 pub mod cos_sin;
 pub mod dot;
+pub mod frame_interval;
 pub mod scalar;
 #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
 pub mod vfp;

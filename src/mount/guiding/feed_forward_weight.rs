@@ -20,8 +20,16 @@
 //! weight below [`PROBE`] would no longer measure `h`, so a target below it
 //! is none: the feed-forward is switched off and stays off (the guider
 //! alone is the safe outcome) until a model reset or restore measures again.
+//!
+//! Its windows are counted at 2 s frames: behind longer frames the counts
+//! are cut in proportion (`FrameInterval`, as the model's trust's are; the
+//! addition `weight_by_time`), so that the weight moves after as much time.
+//! Its pace stays per frame: scaled with the frames' length too, the weight
+//! fell further on a drawn mount whose model still improved (population
+//! mount 97, docs/model.md).
 
 use crate::model::numeric::clamp;
+use crate::model::numeric::frame_interval::FrameInterval;
 
 /// Frames the running means average over (about 30 minutes at 2 s).
 const WINDOW_FRAMES: f32 = 1000.0;
@@ -53,6 +61,8 @@ pub struct FeedForwardWeight {
     /// Where the weight moves: the best share last measured.
     target: f32,
     weight: f32,
+    /// The frame interval the windows are counted in.
+    interval: FrameInterval<f32>,
 }
 
 impl FeedForwardWeight {
@@ -65,6 +75,7 @@ impl FeedForwardWeight {
         scored: 0.0,
         target: 1.0,
         weight: 1.0,
+        interval: FrameInterval::UNKNOWN,
     };
 
     /// The share of the feed-forward to apply, 0..=1.
@@ -77,6 +88,7 @@ impl FeedForwardWeight {
     pub fn remeasure(&mut self) {
         *self = FeedForwardWeight {
             shadow_applied: self.shadow_applied,
+            interval: self.interval,
             ..Self::FULL
         };
     }
@@ -86,6 +98,12 @@ impl FeedForwardWeight {
     /// shadow starts again from the real loop's state.
     pub fn interrupt(&mut self) {
         self.shadow_applied = None;
+    }
+
+    /// A measured guide frame came `interval_s` after the previous one:
+    /// the windows follow the frames' length (`weight_by_time`).
+    pub fn frame_interval(&mut self, interval_s: f32) {
+        self.interval.measure(interval_s);
     }
 
     /// A measured guide frame: `gear` the reconstructed gear error, `applied`
@@ -103,14 +121,17 @@ impl FeedForwardWeight {
         if !feeding {
             return;
         }
+        // The counts' share at the frames' length (1 at 2 s or shorter).
+        let cut = self.interval.frames(1.0);
+        let min_scored = MIN_SCORED * cut;
         if self.weight >= PROBE {
             let h = (e_a - e) / self.weight;
             self.scored += 1.0;
-            let n = self.scored.min(WINDOW_FRAMES);
+            let n = self.scored.min(WINDOW_FRAMES * cut);
             self.cross += (e_a * h - self.cross) / n;
             self.power += (h * h - self.power) / n;
             self.shadow_square += (e_a * e_a - self.shadow_square) / n;
-            if self.scored >= MIN_SCORED && self.power > 0.0 {
+            if self.scored >= min_scored && self.power > 0.0 {
                 // A share below the probe cannot be measured: none. Less
                 // than the feed-forward in full only where that gains more
                 // than the shadow's own error.
@@ -125,7 +146,7 @@ impl FeedForwardWeight {
                 };
             }
         }
-        if self.scored >= MIN_SCORED {
+        if self.scored >= min_scored {
             self.weight = clamp(self.target, self.weight - STEP, self.weight + STEP);
         }
     }
@@ -203,6 +224,43 @@ mod tests {
             fw.measured(5.0, -5.0, 0.7, false);
         }
         assert_eq!(fw.weight(), 1.0);
+    }
+
+    /// The frames at which the weight first moves and reaches none, with a
+    /// feed-forward of noise on a still gear, each frame `interval_s` after
+    /// the last (None: the interval not measured, as without
+    /// `weight_by_time`).
+    fn frames_to_none(interval_s: Option<f32>) -> (usize, usize) {
+        let mut fw = FeedForwardWeight::FULL;
+        let mut applied = 0.0;
+        let mut first = None;
+        for k in 1..=1000 {
+            if let Some(i) = interval_s {
+                fw.frame_interval(i);
+            }
+            fw.measured(0.0, applied, 0.7, true);
+            applied += -0.7 * applied + fw.weight() * if k % 2 == 0 { 1.0 } else { -1.0 };
+            if fw.weight() < 1.0 && first.is_none() {
+                first = Some(k);
+            }
+            if fw.weight() == 0.0 {
+                return (first.unwrap(), k);
+            }
+        }
+        panic!("the weight stays at {}", fw.weight());
+    }
+
+    #[test]
+    fn behind_longer_frames_the_weight_moves_after_as_much_time() {
+        let min = MIN_SCORED as usize;
+        // At the counted interval, and not measured: MIN_SCORED frames,
+        // then none 100 frames later.
+        assert_eq!(frames_to_none(Some(2.0)), (min, min + 100));
+        assert_eq!(frames_to_none(None), (min, min + 100));
+        // Twice as long: half the frames, at the same pace.
+        assert_eq!(frames_to_none(Some(4.0)), (min / 2, min / 2 + 100));
+        // Shorter frames keep the counts.
+        assert_eq!(frames_to_none(Some(0.5)), (min, min + 100));
     }
 
     #[test]
