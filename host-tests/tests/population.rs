@@ -194,13 +194,13 @@ fn the_first_mounts_meet_the_goal() {
             r.figures().iter().all(|x| x.is_finite() && *x > 0.0),
             "{r:?}"
         );
-        if r.mkgp > r.reactive {
+        if summary::worse(r.mkgp / r.reactive) {
             misses.push(format!(
                 "mount {} at {:.2} px: mkgp {:.3} > reactive {:.3}",
                 r.mount, r.noise_px, r.mkgp, r.reactive
             ));
         }
-        if r.fw_mkgp > r.guider_only {
+        if summary::worse(r.fw_mkgp / r.guider_only) {
             misses.push(format!(
                 "mount {} at {:.2} px: fw_mkgp {:.3} > guider alone {:.3}",
                 r.mount, r.noise_px, r.fw_mkgp, r.guider_only
@@ -220,7 +220,10 @@ fn the_first_mounts_meet_the_goal() {
             .filter(|r| (r.noise_px > 0.0) == (l.level == summary::Level::Seeing))
             .collect();
         assert_eq!(s.mounts, RUN);
-        assert_eq!(s.worse, at.iter().filter(|r| l.ratio.of(r) > 1.0).count());
+        assert_eq!(
+            s.worse,
+            at.iter().filter(|r| summary::worse(l.ratio.of(r))).count()
+        );
         let worst = at.iter().map(|r| l.ratio.of(r)).fold(f64::MIN, f64::max);
         assert_eq!(s.worst, worst);
         assert!(s.median <= s.p90 && s.p90 <= s.worst, "{l:?}");

@@ -1292,7 +1292,7 @@ fn cmd_population(
         }
         return ExitCode::SUCCESS;
     }
-    println!("Summary: each ratio over the mounts (worse: mounts with a ratio above 1)");
+    println!("Summary: each ratio over the mounts (worse: mounts with a ratio above 1, beyond a tie of a millionth)");
     println!(
         "{:<7} {:<20} {:>6} {:>7} {:>7} {:>7} {:>11} {:>6}",
         "noise", "ratio", "mounts", "median", "p90", "worst", "worst_mount", "worse"

@@ -1,7 +1,8 @@
 //! The population's summary: per noise level, each model's ratio to the
 //! loop's own baseline (the reactive guider in the model's loop, the
 //! guider alone in the firmware's) over the mounts: median, 90th
-//! percentile, worst, and how many mounts it is worse on (ratio above 1).
+//! percentile, worst, and how many mounts it is worse on (ratio above 1
+//! by more than a tie, [`TIE`]).
 
 use super::Row;
 
@@ -24,6 +25,18 @@ impl Level {
     fn holds(self, row: &Row) -> bool {
         (row.noise_px > 0.0) == (self == Level::Seeing)
     }
+}
+
+/// Ratios within this of 1 are ties, not worse: a millionth of the RMS
+/// is, on these mounts, less than a ten-thousandth of a microstep (0.094
+/// arcsec), no difference in guiding. A firmware whose feed-forward is
+/// switched off guides as the guider alone, but from where the first hour
+/// left its steps: the RMS moves by about that much either way.
+pub const TIE: f64 = 1e-6;
+
+/// Whether a ratio to the baseline is worse than it (beyond a tie).
+pub fn worse(ratio: f64) -> bool {
+    ratio > 1.0 + TIE
 }
 
 /// A column over its loop's baseline.
@@ -71,7 +84,7 @@ pub struct Stats {
     pub p90: f64,
     pub worst: f64,
     pub worst_mount: usize,
-    /// Mounts on which the ratio is above 1.
+    /// Mounts on which the ratio is above 1 by more than a tie.
     pub worse: usize,
 }
 
@@ -87,7 +100,7 @@ impl Stats {
             p90: x[(n * 9).div_ceil(10) - 1].0,
             worst,
             worst_mount,
-            worse: x.iter().filter(|(v, _)| *v > 1.0).count(),
+            worse: x.iter().filter(|(v, _)| worse(*v)).count(),
         })
     }
 }
@@ -184,6 +197,12 @@ mod tests {
         assert_eq!((s.worst, s.worst_mount, s.worse), (10.0 / 8.0, 10, 2));
         let fw = lines[2].stats;
         assert_eq!((fw.median, fw.worse), (0.5, 0));
+        // A tie is not worse; a hair beyond it is.
+        let tie = |by: f64| {
+            let r = [row(1, 0.0, 1.0 + by)];
+            summarize(&r)[0].stats.worse
+        };
+        assert_eq!((tie(0.0), tie(TIE / 2.0), tie(2.0 * TIE)), (0, 0, 1));
         let seeing = lines[4];
         assert_eq!(
             (seeing.level, seeing.stats.mounts, seeing.stats.median),
