@@ -11,7 +11,7 @@ use mkgp_mount::model::additions::Additions;
 
 /// Mounts drawn for the range checks (drawing only: cheap).
 const DRAWN: usize = 2_000;
-/// Mounts run through both loops (about 17 s of CPU each; with mount 1
+/// Mounts run through both loops (about 12 s of CPU each; with mount 1
 /// run again, about 35 s on 2 idle cores).
 const RUN: usize = 3;
 

@@ -177,7 +177,7 @@ enum Command {
     /// (model) and to the guider alone (firmware), and how many mounts are worse.
     /// --csv: the rows on stdout, the summary on stderr. Progress on stderr.
     /// Seed 28 is the development seed (the tests, docs/results.md); others are
-    /// for evaluation. About 17 s of CPU per mount (half an hour for 200 on 2 cores).
+    /// for evaluation. About 12 s of CPU per mount (22 minutes for 200 on 2 cores).
     #[command(verbatim_doc_comment)]
     Population(PopulationArgs),
     /// What each addition around the paper's model is worth
