@@ -4,7 +4,7 @@
 //! in turn (`mkgp_mount::model::additions`).
 //!
 //! An addition is measured in the loop it acts in ([`Acts`]): the
-//! learner's, the loop's fast part's and `grid_lag` in the firmware's (as
+//! learner's, the loop's fast part's, `exact_cells` and `noise_floor` in the firmware's (as
 //! `guide-sim st4`: fw MKGP over the guider alone), the restore's, the
 //! saved share and the trusted gate across a power cycle (as `guide-sim
 //! nights`, the gear moved while off: night 2's first 30 minutes restored,

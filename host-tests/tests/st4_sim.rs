@@ -138,6 +138,37 @@ fn a_mount_configured_with_another_wheel_stays_below_the_guider_alone() {
     }
 }
 
+/// A mount whose gears add no error, behind 1 px of seeing: the model must
+/// find no stage in the noise alone (`noise_floor`), and the firmware
+/// stays below the guider alone at its default share; without the floor
+/// the stages it finds there cost more than the guider alone.
+#[test]
+fn a_flat_gear_finds_no_stage_in_the_noise() {
+    let mut c = case("C1");
+    for s in &mut c.sinusoids {
+        s.amplitude_px = 0.0;
+    }
+    c.drift_px_per_s = 0.0;
+    let rms = |firmware, setup: Setup| {
+        (1..=3)
+            .map(|seed| st4_sim::run_with(&c, firmware, 1.0, seed, setup).rms)
+            .sum::<f64>()
+            / 3.0
+    };
+    let mut without = Setup::default();
+    without.additions.set("noise_floor", false).unwrap();
+    let alone = rms(Firmware::GuiderOnly, Setup::default());
+    let (on, off) = (
+        rms(Firmware::Mkgp, Setup::default()),
+        rms(Firmware::Mkgp, without),
+    );
+    println!(
+        "flat gear at 1 px: guider only {alone:.3}, fw mkgp {on:.3}, without noise_floor {off:.3}"
+    );
+    assert!(on < alone, "{on:.3} vs {alone:.3}");
+    assert!(off > alone, "without noise_floor: {off:.3} vs {alone:.3}");
+}
+
 /// A PPEC rig on C1, guided for `secs` first.
 fn rig(secs: u64) -> Rig {
     let mut r = Rig::new(&case("C1"), Firmware::Ppec, 0.0, 1);

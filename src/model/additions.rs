@@ -148,6 +148,14 @@ additions! {
     /// the search band, as when it was found, and never moves to its
     /// fundamental.
     follow_band: Model,
+    /// Stage discovery on the mount's exact grid (`exact_cells`): a peak
+    /// is a line only where its power stands
+    /// [`NOISE_FLOOR`](crate::model::spectral::discovery::NOISE_FLOOR)
+    /// times above the median of the spectrum around it, so that the
+    /// seeing noise alone finds no stage (the reference's averaging
+    /// smooths it across cells). Off: the strongest admissible peak is a
+    /// stage's, however weak.
+    noise_floor: Firmware,
     /// The guider: with more than one stage, the reference blend is
     /// weighted by the trust the model earns in shadow loops, the model's
     /// against the reactive law alone (`model::guider::trust`). Off: the
@@ -170,11 +178,13 @@ additions! {
     /// (`model::guider::trust`). Off: the same counts whatever the frames'
     /// length.
     trust_by_time: Model,
-    /// The guider: the mount's feed-forward reads the model the grid's lag
-    /// later, where the gear error's own time lies
-    /// (`GuiderConfig::prediction_at_gear_time`, `Grid::lag_s`). Off: at
-    /// the grid's time, the reference's timing.
-    grid_lag: Firmware,
+    /// The guider: the mount's grid averages each cell exactly, the mean
+    /// over it of the straight lines between consecutive frames, so that
+    /// a cell stands for its centre whatever the frames' times
+    /// (`GuiderConfig::prediction_at_gear_time`, `grid::Averaging`). Off:
+    /// the reference's averaging, whose cells sit before their centres by
+    /// an amount that moves with the frames' phase against the cells.
+    exact_cells: Firmware,
     /// The guider: a frame off the clock by more than 600 s is held, and
     /// the next frame that continues it moves the clock there (a paused
     /// guider, a reset clock; `Guider::accept_time`). Off: such a frame is
@@ -303,7 +313,8 @@ mod tests {
             "calibration_watch",
             "calibration_share",
             "share_to_interval",
-            "grid_lag",
+            "exact_cells",
+            "noise_floor",
             "configured_worm",
             "observed_envelope",
         ];

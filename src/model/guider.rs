@@ -15,7 +15,7 @@
 use core::mem::MaybeUninit;
 
 use crate::model::additions::Additions;
-use crate::model::gp::grid::{Grid, Push, CELL_S, GRID_CELLS};
+use crate::model::gp::grid::{Averaging, Grid, Push, CELL_S, GRID_CELLS};
 use crate::model::gp::infer::Gp;
 use crate::model::gp::kernel::Kernel;
 use crate::model::in_place::{build, fill, init_fields};
@@ -98,12 +98,13 @@ pub struct GuiderConfig<S> {
     /// The user's estimate of the period of stages 1, 2, 3 (seconds), if
     /// known: the search for that stage is then confined to a band around it.
     pub stage_seeds_s: [Option<f64>; MAX_SEEDED_STAGES],
-    /// Read the prediction's window [`Grid::lag_s`] later, at the gear
-    /// error's own time rather than where the grid's averaging puts it:
-    /// for a feed-forward applied as a rate over the coming interval (the
-    /// mount's). False keeps the reference's timing, which a PC guider's
-    /// correction of its next frame measures better (INDIGO's traces, the
-    /// PHD2 logs; docs/model.md, `grid_lag`).
+    /// Predict the gear error at its own time: the grid averages its cells
+    /// exactly ([`Averaging::Exact`], with the addition `exact_cells`), so
+    /// each cell stands for its centre whatever the frames' times; for a
+    /// feed-forward applied as a rate over the coming interval (the
+    /// mount's). False keeps the reference's averaging and timing, which a
+    /// PC guider's correction of its next frame measures better (INDIGO's
+    /// traces, the PHD2 logs; docs/model.md, `exact_cells`).
     pub prediction_at_gear_time: bool,
     /// The fastest the gear error can change (px or arcsec per second): a
     /// prediction is held within this rate over its span, and a restored
@@ -256,9 +257,10 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
             s.checked_sub(1)
                 .and_then(|i| config.stage_seeds_s.get(i).copied().flatten())
         });
+        let averaging = averaging(&config);
         init_fields!(slot, Self {
             config = config,
-            grid in Grid::init,
+            grid in |slot| Grid::init(slot, averaging),
             scratch in |f| fill(f, S::ZERO),
             peaks_stale = true,
             gp in Gp::init,
@@ -871,13 +873,16 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
                     let worm = spectrum.strongest(0, NYQUIST_BIN, |_| true);
                     self.worm_peak_s = worm.map(|p| p.period_s);
                     if N > 1 {
-                        self.discovery.scan(
-                            &spectrum,
-                            &mut self.trackers,
-                            worm,
-                            spans,
-                            &self.config.additions,
-                        );
+                        // The noise floor is the exact grid's: the
+                        // reference's averaging smooths the seeing noise
+                        // across cells, and a PC guider keeps its figures.
+                        let adds = Additions {
+                            noise_floor: self.config.additions.noise_floor
+                                && self.grid.averaging() == Averaging::Exact,
+                            ..self.config.additions
+                        };
+                        self.discovery
+                            .scan(&spectrum, &mut self.trackers, worm, spans, &adds);
                     }
                 }
             }
@@ -907,8 +912,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
 
     /// Predicted change of the gear error from the end of the last
     /// prediction to `now + dt` (s since start, plus the dither offset),
-    /// on the grid's time axis (read the grid's lag later with
-    /// [`GuiderConfig::prediction_at_gear_time`]).
+    /// on the grid's time axis.
     fn predict(&mut self, now: f64, dt: f64) -> S {
         let x1 = now + dt + self.dither_offset;
         let x0 = self.last_prediction_end.unwrap_or(now);
@@ -916,12 +920,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
         let Some(origin) = self.grid.origin() else {
             return S::ZERO;
         };
-        let lag = if self.config.prediction_at_gear_time && self.config.additions.grid_lag {
-            self.grid.lag_s()
-        } else {
-            0.0
-        };
-        let (from, to) = (x0 - origin + lag, x1 - origin + lag);
+        let (from, to) = (x0 - origin, x1 - origin);
         let change = self.gp.predict_change(&self.grid, &self.kernel, from, to);
         let bound = self.config.max_gear_rate * (x1 - x0).max(0.0);
         if bound.is_finite() {
@@ -973,6 +972,17 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
 
 /// Whether a frame at `time_s` continues a clock whose last frame was at
 /// `last_s`.
+/// The grid's averaging for a guider of this configuration: exact for the
+/// mount's (`GuiderConfig::prediction_at_gear_time`) unless `exact_cells`
+/// is off.
+fn averaging<S>(config: &GuiderConfig<S>) -> Averaging {
+    if config.prediction_at_gear_time && config.additions.exact_cells {
+        Averaging::Exact
+    } else {
+        Averaging::Reference
+    }
+}
+
 fn continues(last_s: f64, time_s: f64) -> bool {
     (0.0..=MAX_FRAME_GAP_S).contains(&(time_s - last_s))
 }
@@ -1010,10 +1020,10 @@ mod tests {
     }
 
     #[test]
-    fn without_grid_lag_the_feed_forward_keeps_the_grids_time() {
-        // The mount's feed-forward on 2 s frames, where the grid's lag is
-        // 1.3 s: with the addition read that much later, without it at the
-        // reference's timing, frame for frame.
+    fn without_exact_cells_the_mounts_grid_is_the_references() {
+        // The mount's feed-forward on 2 s frames: with the addition its
+        // grid averages exactly, without it as a PC guider's, frame for
+        // frame.
         let run = |prediction_at_gear_time: bool, additions: Additions| {
             let mut g: Guider<f64, 1> = Guider::new(GuiderConfig {
                 prediction_at_gear_time,
@@ -1027,7 +1037,7 @@ mod tests {
             ff
         };
         let mut off = Additions::ALL;
-        off.set("grid_lag", false).unwrap();
+        off.set("exact_cells", false).unwrap();
         let reference = run(false, Additions::ALL);
         assert!(reference.iter().any(|&f| f != 0.0));
         assert_ne!(run(true, Additions::ALL), reference);

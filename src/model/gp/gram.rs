@@ -49,7 +49,7 @@ pub(super) fn fill<S: Scalar>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::gp::grid::CELL_S;
+    use crate::model::gp::grid::{Averaging, CELL_S};
     use crate::model::gp::kernel::Kernel;
     use crate::model::gp::lag_table::{build, Split};
 
@@ -57,7 +57,7 @@ mod tests {
     /// time, and across a dark gap with the envelopes in observed time.
     #[test]
     fn each_entry_is_the_kernel_at_its_pairs_lags() {
-        let mut grid: Grid<f64> = Grid::new();
+        let mut grid: Grid<f64> = Grid::new(Averaging::Reference);
         let mut t = 0.0;
         while t < 6000.0 {
             grid.push(t, libm::sin(t / 40.0), 0.5 + 0.001 * t);

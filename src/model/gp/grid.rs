@@ -18,11 +18,13 @@
 //! The first quirk weighs the past: a cell's average stands for the gear
 //! error some time before the cell's centre (the anchor carries half the
 //! weight, and each anchor is interpolated between the previous one and a
-//! sample). The grid tracks where in time each cell's weights sit and
-//! keeps the running mean of that lag ([`Grid::lag_s`]); the mount's
-//! feed-forward predicts that much later on the grid's time axis
-//! (`GuiderConfig::prediction_at_gear_time`), a PC guider's prediction
-//! keeps the reference's timing.
+//! sample), by an amount that depends on where the frames fall against the
+//! cells' ends (tens of seconds at 2.5 s frames that land just before
+//! each end). A PC guider's frames keep one phase against the cells, and
+//! the reference's traces are kept to the digit; the mount's frames drift
+//! against them, so the mount's guider averages [`Averaging::Exact`]ly:
+//! each cell holds the mean over it of the straight lines between
+//! consecutive samples, centred on the cell whatever the frames' times.
 //!
 //! Time bookkeeping is `f64`: O(1) work per frame, and it keeps sub-ms
 //! precision over a night also where the model runs in `f32`.
@@ -40,8 +42,17 @@ pub const CELL_S: f64 = 5.0;
 /// one (clouds, a calibration, the gap a re-pointing leaves) are pushed
 /// with 10^4.
 pub const UNMEASURED_VARIANCE: f64 = 100.0;
-/// Cells the averaging's lag is a running mean over (about 5 minutes).
-pub const LAG_CELLS: u32 = 64;
+
+/// How a cell's average is taken from the samples in it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Averaging {
+    /// The reference's: every trapezoid from the anchor interpolated at the
+    /// cell's start (a PC guider's; INDIGO's traces to the digit).
+    Reference,
+    /// The mean of the straight lines between consecutive samples: the
+    /// cell's average stands for its centre (the mount's guider).
+    Exact,
+}
 
 /// Outcome of adding a sample.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -56,7 +67,7 @@ pub enum Push {
 }
 
 /// Ring of completed cells plus the running state of the open cell.
-/// RAM: 2 x 2048 scalars (16 KiB in `f32`) plus 136 bytes.
+/// RAM: 2 x 2048 scalars (16 KiB in `f32`) plus 112 bytes.
 pub struct Grid<S> {
     gear: [S; GRID_CELLS],
     variance: [S; GRID_CELLS],
@@ -68,6 +79,7 @@ pub struct Grid<S> {
     /// Time of the first sample; cell `i` is centred at `origin + 5 i - 2.5`.
     origin: f64,
     started: bool,
+    averaging: Averaging,
     // Running state of the open cell, times relative to `origin`.
     cell_end: f64,
     last_time: f64,
@@ -75,18 +87,6 @@ pub struct Grid<S> {
     anchor_variance: f64,
     gear_sum: f64,
     variance_sum: f64,
-    /// The time the anchor's value stands for (relative to `origin`): the
-    /// reference interpolates a cell's end between the previous anchor and
-    /// the new sample, so an anchor stands for a time before the cell's
-    /// start.
-    anchor_time: f64,
-    /// The open cell's weights times the times their values stand for:
-    /// where in time its average sits.
-    time_sum: f64,
-    /// Running mean over the recent cells of how far each cell's average
-    /// sits before the cell's centre, s, and the cells it has seen.
-    lag_s: f64,
-    lag_cells: u32,
     /// The newest gap in which the gears were not observed (`set_dark`).
     dark: Option<Dark>,
 }
@@ -103,12 +103,12 @@ struct Dark {
 }
 
 impl<S: Scalar> Grid<S> {
-    pub fn new() -> Self {
-        build(Self::init)
+    pub fn new(averaging: Averaging) -> Self {
+        build(|slot| Self::init(slot, averaging))
     }
 
     /// [`new`](Self::new) in place (`crate::model::in_place`).
-    pub fn init(slot: &mut MaybeUninit<Self>) -> &mut Self {
+    pub fn init(slot: &mut MaybeUninit<Self>, averaging: Averaging) -> &mut Self {
         init_fields!(slot, Self {
             gear in |f| fill(f, S::ZERO),
             variance in |f| fill(f, S::ZERO),
@@ -117,21 +117,18 @@ impl<S: Scalar> Grid<S> {
             emitted = 0,
             origin = 0.0,
             started = false,
+            averaging = averaging,
             cell_end = 0.0,
             last_time = -CELL_S,
             anchor_gear = 0.0,
             anchor_variance = 0.0,
             gear_sum = 0.0,
             variance_sum = 0.0,
-            anchor_time = -CELL_S,
-            time_sum = 0.0,
-            lag_s = 0.0,
-            lag_cells = 0,
             dark = None,
         })
     }
 
-    /// Empty, as new, in place: `*self = Self::new()` let LLVM build the
+    /// Empty, as new (with the same averaging), in place: `*self = Self::new()` let LLVM build the
     /// 16 KiB grid in a temporary on the stack first (a 16,640 B frame in
     /// `push`, which overflowed the L475's 20 KiB stack at boot).
     pub fn clear(&mut self) {
@@ -139,7 +136,14 @@ impl<S: Scalar> Grid<S> {
         // SAFETY: `slot` is this grid, valid for writes and borrowed by
         // nothing else; every field is plain data (nothing to drop), and
         // `init` writes each one before the grid is used again.
-        Self::init(unsafe { &mut *slot.cast::<MaybeUninit<Self>>() });
+        let averaging = self.averaging;
+        // SAFETY: as above.
+        Self::init(unsafe { &mut *slot.cast::<MaybeUninit<Self>>() }, averaging);
+    }
+
+    /// How the cells are averaged.
+    pub fn averaging(&self) -> Averaging {
+        self.averaging
     }
 
     /// Number of completed cells held.
@@ -191,36 +195,39 @@ impl<S: Scalar> Grid<S> {
             return Push::Restarted;
         }
         let mut new_cells = 0;
-        if t < self.cell_end {
-            let w = 0.5 * (t - self.last_time);
-            self.gear_sum += w * (self.anchor_gear + gear);
-            self.variance_sum += w * (self.anchor_variance + variance);
-            self.time_sum += w * (self.anchor_time + t);
-            self.last_time = t;
-        } else {
-            while t >= self.cell_end {
-                let p = (self.cell_end - self.last_time) / (t - self.last_time);
-                let g = p * gear + (1.0 - p) * self.anchor_gear;
-                let v = p * variance + (1.0 - p) * self.anchor_variance;
-                let g_time = p * t + (1.0 - p) * self.anchor_time;
-                let w = 0.5 * (self.cell_end - self.last_time);
-                self.gear_sum += w * (self.anchor_gear + g);
-                self.variance_sum += w * (self.anchor_variance + v);
-                self.time_sum += w * (self.anchor_time + g_time);
-                self.emit(self.gear_sum / CELL_S, self.variance_sum / CELL_S);
-                self.note_lag(self.cell_end - 0.5 * CELL_S - self.time_sum / CELL_S);
-                self.time_sum = 0.0;
-                new_cells += 1;
-                self.last_time = self.cell_end;
-                self.anchor_gear = g;
-                self.anchor_variance = v;
-                self.anchor_time = g_time;
-                self.cell_end += CELL_S;
-                self.gear_sum = 0.0;
-                self.variance_sum = 0.0;
-            }
+        while t >= self.cell_end {
+            let p = (self.cell_end - self.last_time) / (t - self.last_time);
+            let g = p * gear + (1.0 - p) * self.anchor_gear;
+            let v = p * variance + (1.0 - p) * self.anchor_variance;
+            self.add_trapezoid(self.cell_end, g, v);
+            self.emit(self.gear_sum / CELL_S, self.variance_sum / CELL_S);
+            new_cells += 1;
+            self.anchor_gear = g;
+            self.anchor_variance = v;
+            self.cell_end += CELL_S;
+            self.gear_sum = 0.0;
+            self.variance_sum = 0.0;
+        }
+        // The reference folds the stretch from a cell's start to the sample
+        // that crossed into it into the next sample's trapezoid.
+        if new_cells == 0 || self.averaging == Averaging::Exact {
+            self.add_trapezoid(t, gear, variance);
         }
         Push::Accepted { new_cells }
+    }
+
+    /// Add the trapezoid from the last sample's time to `t`, between the
+    /// anchor and this sample; exact averaging makes the sample the next
+    /// trapezoid's anchor.
+    fn add_trapezoid(&mut self, t: f64, gear: f64, variance: f64) {
+        let w = 0.5 * (t - self.last_time);
+        self.gear_sum += w * (self.anchor_gear + gear);
+        self.variance_sum += w * (self.anchor_variance + variance);
+        self.last_time = t;
+        if self.averaging == Averaging::Exact {
+            self.anchor_gear = gear;
+            self.anchor_variance = variance;
+        }
     }
 
     /// Refill with saved `cells` (gear error and variance, oldest first, at
@@ -240,8 +247,6 @@ impl<S: Scalar> Grid<S> {
         self.started = true;
         self.cell_end = CELL_S * self.len as f64;
         self.last_time = self.cell_end - CELL_S;
-        // The anchor is the last cell's average: its centre's time.
-        self.anchor_time = self.last_time - 0.5 * CELL_S;
         self.anchor_variance = anchor_variance;
     }
 
@@ -371,29 +376,9 @@ impl<S: Scalar> Grid<S> {
         self.len += count;
         self.emitted += count as u64;
         let shift = CELL_S * count as f64;
-        // The open cell's times so far move too: their weights sum to the
-        // time it has covered.
-        self.time_sum += shift * (self.last_time - (self.cell_end - CELL_S));
         self.origin -= shift;
         self.cell_end += shift;
         self.last_time += shift;
-        self.anchor_time += shift;
-    }
-
-    /// How far before its centre a cell's average sits, s: the mean over
-    /// the last [`LAG_CELLS`] cells (0 before any). The reference's
-    /// averaging weighs a cell's start by half (the anchor), so a model
-    /// fitted to the cells sees the gear error about this much late.
-    pub fn lag_s(&self) -> f64 {
-        self.lag_s
-    }
-
-    fn note_lag(&mut self, lag: f64) {
-        if !lag.is_finite() {
-            return;
-        }
-        self.lag_cells = self.lag_cells.saturating_add(1);
-        self.lag_s += (lag - self.lag_s) / self.lag_cells.min(LAG_CELLS) as f64;
     }
 
     fn emit(&mut self, gear: f64, variance: f64) {
@@ -429,12 +414,6 @@ impl<S: Scalar> Unobserved<S> {
     }
 }
 
-impl<S: Scalar> Default for Grid<S> {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -451,7 +430,7 @@ mod tests {
 
     #[test]
     fn constant_signal_gives_constant_cells() {
-        let mut g: Grid<f64> = Grid::new();
+        let mut g: Grid<f64> = Grid::new(Averaging::Reference);
         for i in 0..100 {
             g.push(2.0 * i as f64, 3.0, 0.5);
         }
@@ -465,53 +444,36 @@ mod tests {
         assert_eq!(g.len(), 40); // samples up to 198 s complete cells ending at 0..195
     }
 
-    /// On a gear error that grows linearly with time a cell's average is
-    /// the error at the time its weights sit: `lag_s` is the running mean
-    /// of how far that is before the cell's centre. Half the weight is on
-    /// the anchor, which stands for a time at or before the cell's start,
-    /// the more so the closer the last sample before a cell's end lies to
-    /// it: samples that fall on the cells' ends lag least (1.3 s at 2 s),
-    /// a guider's cadence a little off the cells' most (2.8 s at 2.03 s).
+    /// The largest distance, over the cells after the first, between a
+    /// cell's average and its centre's time on a gear error equal to the
+    /// time: an origin frame at 0, then frames every `spacing` s from
+    /// `first` s.
+    fn worst_off_centre(averaging: Averaging, spacing: f64, first: f64) -> f64 {
+        let mut g: Grid<f64> = Grid::new(averaging);
+        g.push(0.0, 0.0, 1.0);
+        ramp(&mut g, first, 2_000.0, spacing);
+        (1..g.len())
+            .map(|k| (g.cell(k).0 - g.cell_time(k)).abs())
+            .fold(0.0, f64::max)
+    }
+
+    /// On a gear error that grows linearly with time an exact cell holds
+    /// the error at its centre whatever the frames' times. The
+    /// reference's cell sits before its centre, by tens of seconds where
+    /// the frames land just before each cell's end.
     #[test]
-    fn the_lag_is_where_a_cells_average_sits() {
-        for (spacing, low, high) in [
-            (0.01, 1.2, 1.3),
-            (0.5, 1.0, 1.25),
-            (1.03, 3.3, 3.45),
-            (2.0, 1.2, 1.4),
-            (2.03, 2.7, 2.9),
-            (4.0, 0.7, 0.9),
-            // Cells with no sample of their own: none.
-            (8.0, -1e-9, 1e-9),
-        ] {
-            let mut g: Grid<f64> = Grid::new();
-            let mut want = 0.0;
-            let mut cells = 0u32;
-            for i in 0..(2_000.0 / spacing) as u32 {
-                let t = spacing * i as f64;
-                if let Push::Accepted { new_cells } = g.push(t, t, 1.0) {
-                    for k in g.len() - new_cells as usize..g.len() {
-                        // The first cell holds half a sample (the
-                        // reference's start), no time.
-                        let lag = if g.cell_time(k) < 0.0 {
-                            0.0
-                        } else {
-                            g.cell_time(k) - g.cell(k).0
-                        };
-                        cells += 1;
-                        want += (lag - want) / cells.min(LAG_CELLS) as f64;
-                    }
-                }
-            }
-            let lag = g.lag_s();
-            assert!((lag - want).abs() < 1e-6, "{spacing}: {lag} vs {want}");
-            assert!(lag > low && lag < high, "{spacing}: {lag}");
+    fn exact_cells_are_centred_whatever_the_frames_times() {
+        for (spacing, first) in [(2.5, 2.4), (2.5, 2.5), (1.0, 0.3), (2.03, 2.03), (9.5, 1.0)] {
+            let off = worst_off_centre(Averaging::Exact, spacing, first);
+            assert!(off < 1e-9, "{spacing} {first}: {off}");
         }
+        assert!(worst_off_centre(Averaging::Reference, 2.5, 2.4) > 20.0);
+        assert!(worst_off_centre(Averaging::Reference, 2.5, 2.5) < 1.0);
     }
 
     #[test]
     fn rejects_backwards_time_and_nan() {
-        let mut g: Grid<f64> = Grid::new();
+        let mut g: Grid<f64> = Grid::new(Averaging::Reference);
         g.push(10.0, 1.0, 1.0);
         g.push(12.0, 1.0, 1.0);
         assert_eq!(g.push(11.0, 1.0, 1.0), Push::Rejected);
@@ -521,7 +483,7 @@ mod tests {
 
     #[test]
     fn ring_keeps_the_newest_cells() {
-        let mut g: Grid<f64> = Grid::new();
+        let mut g: Grid<f64> = Grid::new(Averaging::Reference);
         ramp(&mut g, 0.0, 12_000.0, 2.0);
         assert_eq!(g.len(), GRID_CELLS);
         // Newest cell: ends at the last boundary passed, holds ~its centre.
@@ -533,7 +495,7 @@ mod tests {
 
     #[test]
     fn a_gap_moves_the_older_cells_back_and_keeps_the_newer() {
-        let mut g: Grid<f64> = Grid::new();
+        let mut g: Grid<f64> = Grid::new(Averaging::Reference);
         let t = ramp(&mut g, 0.0, 1000.0, 2.0);
         let (len, newest_time) = (g.len(), g.cell_time(g.len() - 1) + g.origin().unwrap());
         let old_time = g.cell_time(10) + g.origin().unwrap();
@@ -564,7 +526,7 @@ mod tests {
     /// cell is after it, or with the cells.
     #[test]
     fn the_dark_gap_stays_on_its_cells() {
-        let mut g: Grid<f64> = Grid::new();
+        let mut g: Grid<f64> = Grid::new(Averaging::Reference);
         let t = ramp(&mut g, 0.0, 1000.0, 2.0);
         assert_eq!(g.dark(), None);
         let len = g.len();
@@ -598,25 +560,26 @@ mod tests {
         assert_eq!(g.dark(), None);
     }
 
-    /// A gap moves the grid's time axis under the open cell: the anchor's
-    /// time moves with it, and the lag stays where the cadence puts it.
+    /// A gap moves the grid's time axis under the open cell: the cells
+    /// after it, the open one included, stay centred.
     #[test]
-    fn a_gap_keeps_the_lag() {
-        let mut g: Grid<f64> = Grid::new();
+    fn a_gap_keeps_exact_cells_centred() {
+        let mut g: Grid<f64> = Grid::new(Averaging::Exact);
         let t = ramp(&mut g, 0.0, 1_000.0, 2.03);
-        let before = g.lag_s();
+        let open = g.len();
         g.insert_gap(100, 100, 1e4);
+        let after = g.len();
         ramp(&mut g, t, 1_100.0, 2.03);
-        assert!(
-            (g.lag_s() - before).abs() < 0.2,
-            "{before} -> {}",
-            g.lag_s()
-        );
+        assert!(g.len() > after);
+        for k in after..g.len() {
+            let off = g.cell(k).0 - (g.cell_time(k) + g.origin().unwrap());
+            assert!(off.abs() < 1e-9, "{k} ({open} before the gap): {off}");
+        }
     }
 
     #[test]
     fn huge_jump_restarts() {
-        let mut g: Grid<f64> = Grid::new();
+        let mut g: Grid<f64> = Grid::new(Averaging::Reference);
         g.push(0.0, 1.0, 1.0);
         g.push(2.0, 1.0, 1.0);
         assert_eq!(g.push(1e12, 1.0, 1.0), Push::Restarted);

@@ -153,11 +153,11 @@ impl<S: Scalar> Default for Gp<S> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::gp::grid::GRID_CELLS;
+    use crate::model::gp::grid::{Averaging, GRID_CELLS};
 
     #[test]
     fn short_scratch_is_an_error_not_a_panic() {
-        let mut g = Grid::new();
+        let mut g = Grid::new(Averaging::Reference);
         let mut t = 0.0;
         while t < 3000.0 {
             g.push(t, libm::sin(t / 50.0), 0.5);

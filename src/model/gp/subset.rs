@@ -206,7 +206,7 @@ fn is_nan<S: Scalar>(x: S) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::gp::grid::GRID_CELLS;
+    use crate::model::gp::grid::{Averaging, GRID_CELLS};
     use std::vec::Vec;
 
     /// The subset by sorting every cell: (measured first if
@@ -242,7 +242,7 @@ mod tests {
     }
 
     fn grid<S: Scalar>(seconds: f64) -> Grid<S> {
-        let mut g = Grid::new();
+        let mut g = Grid::new(Averaging::Reference);
         let mut t = 0.0;
         while t < seconds {
             g.push(t, libm::sin(t / 50.0), 0.5);
@@ -264,7 +264,7 @@ mod tests {
     /// Measured from 0 to `gap_from` s, nothing measured (variance 10^4)
     /// for `gap_s`, measured again for `after_s`.
     fn gapped<S: Scalar>(gap_from: f64, gap_s: f64, after_s: f64) -> Grid<S> {
-        let mut g = Grid::new();
+        let mut g = Grid::new(Averaging::Reference);
         let mut t = 0.0;
         while t < gap_from + gap_s + after_s {
             let dark = (gap_from..gap_from + gap_s).contains(&t);

@@ -67,6 +67,16 @@ pub const SEARCH_MIN_CONVERGENCE: f64 = 0.3;
 pub const FORGET_RATIO: f64 = 0.5 * GATE_OFF;
 pub const FORGET_AFTER_FRAMES: u32 = 100;
 
+/// A peak is a line where its power is at least this many times the
+/// median of the independent bins around it. On noise alone a bin's power
+/// over its mean is exponential, and the median is ln 2 of the mean: a
+/// peak this far up comes from noise with a chance of e^-11 in a bin,
+/// about 1 % over the few hundred independent bins a search reads.
+pub const NOISE_FLOOR: f64 = 16.0;
+/// Independent bins (resolutions) either side of a peak whose median is
+/// its noise floor.
+pub const FLOOR_RESOLUTIONS: usize = 16;
+
 /// The evidence gate for a smoothed amplitude ratio.
 pub fn gate(ratio: f64) -> f64 {
     ((ratio - GATE_OFF) / (GATE_FULL - GATE_OFF)).clamp(0.0, 1.0)
@@ -171,6 +181,33 @@ fn strongest_peak<S: Scalar>(
             && !notched(p, known, lines, span_s)
             && !commensurate(p, known, lines, span_s)
     })
+}
+
+/// Whether `peak` stands [`NOISE_FLOOR`] times above the median of the
+/// independent bins (one resolution apart) within [`FLOOR_RESOLUTIONS`]
+/// of it, its own main lobe left out.
+fn above_noise<S: Scalar>(spectrum: &Spectrum<'_, S>, peak: &Peak) -> bool {
+    let (low, high) = spectrum.bins();
+    let step = low.max(1);
+    let centre = libm::round(period_bin(peak.period_s)) as usize;
+    let bins = (2..=FLOOR_RESOLUTIONS + 1)
+        .flat_map(|j| [centre.checked_sub(j * step), centre.checked_add(j * step)])
+        .flatten()
+        .filter(|&k| k >= low && k <= high);
+    let mut around = [0.0; 2 * FLOOR_RESOLUTIONS];
+    let mut n = 0;
+    for (slot, k) in around.iter_mut().zip(bins) {
+        *slot = spectrum.power(k);
+        n += 1;
+    }
+    // The median by counting: 32 values, and no sort's code in the flash.
+    let values = || around.iter().take(n).copied();
+    let median = values().find(|&x| {
+        let below = values().filter(|&y| y < x).count();
+        let at = values().filter(|&y| y == x).count();
+        below <= n / 2 && n / 2 < below + at
+    });
+    median.is_none_or(|m| peak.power >= NOISE_FLOOR * m)
 }
 
 /// The peak a found stage follows: the strongest within [`FOLLOW_WIDTH`] of
@@ -399,6 +436,9 @@ impl<const N: usize> Discovery<N> {
                 strongest_peak(spectrum, band, known, lines, spans.new_s, adds)
             };
             let Some(peak) = peak else { continue };
+            if adds.noise_floor && !above_noise(spectrum, &peak) {
+                continue;
+            }
             if !stage.found {
                 stage.found = true;
                 trackers[s] = PeriodTracker::new(peak.period_s);
@@ -544,7 +584,8 @@ mod tests {
 
     /// `g` sampled every 2 s over `span` s.
     fn sampled(g: impl Fn(f64) -> f64, span: f64) -> crate::model::gp::grid::Grid<f64> {
-        let mut grid = crate::model::gp::grid::Grid::new();
+        let mut grid =
+            crate::model::gp::grid::Grid::new(crate::model::gp::grid::Averaging::Reference);
         let mut t = 0.0;
         while t < span {
             grid.push(t, g(t), 1.0);
@@ -821,6 +862,34 @@ mod tests {
             found(&buf, trackers, 10240.0, &without("local_maximum")),
             Some(bin_period(45.0))
         );
+    }
+
+    #[test]
+    fn without_noise_floor_a_line_in_the_noise_is_a_stage() {
+        // Noise of power 100 in every bin; a line at bin 112 of 10 and of
+        // 20 times that (amplitude ratios 0.32 and 0.45 to the worm's).
+        for (power, with, without_floor) in [
+            (1000.0, None, Some(112.0)),
+            (2000.0, Some(112.0), Some(112.0)),
+        ] {
+            let mut buf = [100.0; crate::model::spectral::fft::FFT_LEN];
+            let line = lines(&[(112, power)]);
+            for (b, l) in buf.iter_mut().zip(&line) {
+                *b = b.max(*l);
+            }
+            let trackers = tracked([0.0; 2]);
+            let want = |bin: Option<f64>| bin.map(bin_period);
+            assert_eq!(
+                found(&buf, trackers, 10240.0, &Additions::ALL),
+                want(with),
+                "{power}"
+            );
+            assert_eq!(
+                found(&buf, trackers, 10240.0, &without("noise_floor")),
+                want(without_floor),
+                "{power}"
+            );
+        }
     }
 
     #[test]

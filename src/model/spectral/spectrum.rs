@@ -221,9 +221,10 @@ fn log_parabola_offset(y0: f64, y2: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::gp::grid::Averaging;
 
     fn grid_of(f: impl Fn(f64) -> f64, until: f64) -> Grid<f64> {
-        let mut g = Grid::new();
+        let mut g = Grid::new(Averaging::Reference);
         let mut t = 0.0;
         while t < until {
             g.push(t, f(t), 1.0);

@@ -19,7 +19,7 @@ mod support;
 use core::hint::black_box;
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use cortex_m_semihosting::hprintln;
-use mkgp_mount::model::gp::grid::Grid;
+use mkgp_mount::model::gp::grid::{Averaging, Grid};
 use mkgp_mount::model::gp::infer::Gp;
 use mkgp_mount::model::gp::kernel::Kernel;
 use mkgp_mount::model::spectral::fft::FFT_LEN;
@@ -41,7 +41,7 @@ fn g(t: f64) -> f64 {
 
 #[entry]
 fn main() -> ! {
-    let grid = GRID.init(Grid::new());
+    let grid = GRID.init(Grid::new(Averaging::Exact));
     let mut t = 0.0;
     while t < 6000.0 {
         grid.push(t, g(t), 0.7);

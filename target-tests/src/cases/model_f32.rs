@@ -10,7 +10,7 @@ use crate::harness::{check, close_abs, TestResult};
 use crate::support::Slot;
 use core::f64::consts::PI;
 use cortex_m_semihosting::hprintln;
-use mkgp_mount::model::gp::grid::Grid;
+use mkgp_mount::model::gp::grid::{Averaging, Grid};
 use mkgp_mount::model::guider::{Guider, GuiderConfig};
 use mkgp_mount::model::ldlt::{FactorError, Ldlt};
 use mkgp_mount::model::numeric::scalar::Scalar;
@@ -128,7 +128,7 @@ static SPECTRUM_BUF: Slot<[f32; FFT_LEN]> = Slot::new();
 /// The spectrum of 8,000 s of 9 sin(2 pi t / 432) + 0.001 t on the grid
 /// (frames every 2 s) has its strongest line at 432 s (within 2 s).
 pub fn spectrum_finds_the_period() -> TestResult {
-    let grid = GRID.init(Grid::new());
+    let grid = GRID.init(Grid::new(Averaging::Exact));
     let mut t = 0.0;
     while t < 8000.0 {
         grid.push(t, 9.0 * sin64(2.0 * PI * t / 432.0) + 0.001 * t, 1.0);
