@@ -229,6 +229,12 @@ additions! {
     /// placed at the worm's phase, the other stages left out of the fit
     /// until a search of the whole at that phase, a quarter worm period on.
     stage_phases: Restore,
+    /// The restore: with the other stages' shares taken out of the saved
+    /// data (`stage_phases`), the model predicts nothing until their first
+    /// search puts them back: a fit of the worm alone takes their error in
+    /// the new data for a level and a trend (`PhaseSearch::blocks`). Off:
+    /// the worm's share predicts from the first frame.
+    stage_wait: Restore,
     /// The restore: the stages' shares taken out of the saved data are
     /// fitted with the newest cells weighing most, as the shortest fitted
     /// stage's envelope weighs them (`restore::harmonics`): a stage that
@@ -323,6 +329,7 @@ mod tests {
             "placement_search",
             "phase_search",
             "stage_phases",
+            "stage_wait",
             "recent_shares",
             "phase_refine",
             "slew_refine",

@@ -116,7 +116,8 @@ struct PhaseSearch<const N: usize> {
     /// placed at any known phase, or, with the worm's phase known, the
     /// other stages' shares are out of it (a fit of the worm alone takes
     /// their error in the new data for a level and a trend, and predicts
-    /// worse than nothing: C8 noise-free, night 2's 15-30 s).
+    /// worse than nothing: C8 noise-free, night 2's 15-30 s;
+    /// `stage_wait`).
     blocks: bool,
     /// The restored cells, held `..saved`.
     saved: usize,
@@ -503,7 +504,7 @@ impl<const N: usize> Restore<N> {
                     Some(h) => stages.first_stage_search(h),
                     None => WORM_PHASE_SEARCH_PERIODS,
                 },
-                blocks: apart.is_some(),
+                blocks: apart.is_some() && self.adds.stage_wait,
                 saved,
                 stages: apart,
                 worm_shift,
@@ -1338,14 +1339,15 @@ mod tests {
         let mut buf = [0u8; SNAPSHOT_MAX];
         let n = g.snapshot(&mut buf).unwrap();
         let snapshot = Snapshot::parse(&buf[..n], 2).unwrap();
-        let first_frame = |phase: Option<Phase>| {
-            let mut r = std::boxed::Box::new(Guider::<f32, 2>::new(*g.config()));
+        let first_frame_with = |phase: Option<Phase>, config: GuiderConfig<f32>| {
+            let mut r = std::boxed::Box::new(Guider::<f32, 2>::new(config));
             if let Some(phase) = phase {
                 r.restore(&snapshot, phase).unwrap();
             }
             let ff = r.observe(0.0, Some(gear(8000.0)), 0.0, 10.0, 2.0) as f64;
             (ff, r)
         };
+        let first_frame = |phase: Option<Phase>| first_frame_with(phase, *g.config());
         // The first frame has no interval: its gear time is its own.
         let truth = gear(8002.0) - gear(8000.0);
         let (ff, _) = first_frame(Some(known(8000.0)));
@@ -1365,6 +1367,19 @@ mod tests {
         assert_eq!(worm.restore.fit_gates(&worm.gates), worm.gates);
         assert!(worm.gates[1] > 0.5);
         assert!(worm.observe(122.0, Some(gear(8122.0)), 0.0, 10.0, 2.0) != 0.0);
+        // Without `stage_wait` the worm's share predicts from the first
+        // frame, the stages still out until their search.
+        let mut config = *g.config();
+        config.additions.stage_wait = false;
+        let worm_index = Phase::Worm {
+            gear_time_offset_s: 8000.0 + 432.0,
+        };
+        let (ff, unwaiting) = first_frame_with(Some(worm_index), config);
+        assert!(ff != 0.0);
+        assert!(unwaiting
+            .restore
+            .phase_search
+            .is_some_and(|s| s.stages.is_some()));
     }
 
     /// Moved while off, restored with the worm's phase from an index: the
