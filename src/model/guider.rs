@@ -970,8 +970,6 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
     }
 }
 
-/// Whether a frame at `time_s` continues a clock whose last frame was at
-/// `last_s`.
 /// The grid's averaging for a guider of this configuration: exact for the
 /// mount's (`GuiderConfig::prediction_at_gear_time`) unless `exact_cells`
 /// is off.
@@ -983,6 +981,8 @@ fn averaging<S>(config: &GuiderConfig<S>) -> Averaging {
     }
 }
 
+/// Whether a frame at `time_s` continues a clock whose last frame was at
+/// `last_s`.
 fn continues(last_s: f64, time_s: f64) -> bool {
     (0.0..=MAX_FRAME_GAP_S).contains(&(time_s - last_s))
 }
