@@ -185,6 +185,14 @@ additions! {
     /// the reference's averaging, whose cells sit before their centres by
     /// an amount that moves with the frames' phase against the cells.
     exact_cells: Firmware,
+    /// The guider, on the mount's exact grid: while the steps between
+    /// consecutive frames are anti-correlated, a measured frame more than
+    /// half a cell and at most a cell after the one before counts as the
+    /// mean of the two at the middle of their times
+    /// (`model::gp::pairs`), so that the swing of a loop that
+    /// overcorrects (a period of two frames) is not passed on by the
+    /// cells at an alias as gear error. Off: each frame as it is.
+    paired_frames: Firmware,
     /// The guider: a frame off the clock by more than 600 s is held, and
     /// the next frame that continues it moves the clock there (a paused
     /// guider, a reset clock; `Guider::accept_time`). Off: such a frame is
@@ -320,6 +328,7 @@ mod tests {
             "calibration_share",
             "share_to_interval",
             "exact_cells",
+            "paired_frames",
             "noise_floor",
             "configured_worm",
             "observed_envelope",

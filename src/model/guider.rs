@@ -878,7 +878,7 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
                         // across cells, and a PC guider keeps its figures.
                         let adds = Additions {
                             noise_floor: self.config.additions.noise_floor
-                                && self.grid.averaging() == Averaging::Exact,
+                                && self.grid.averaging() != Averaging::Reference,
                             ..self.config.additions
                         };
                         self.discovery
@@ -972,10 +972,14 @@ impl<S: Scalar, const N: usize> Guider<S, N> {
 
 /// The grid's averaging for a guider of this configuration: exact for the
 /// mount's (`GuiderConfig::prediction_at_gear_time`) unless `exact_cells`
-/// is off.
+/// is off, over pairs of long frames unless `paired_frames` is off.
 fn averaging<S>(config: &GuiderConfig<S>) -> Averaging {
     if config.prediction_at_gear_time && config.additions.exact_cells {
-        Averaging::Exact
+        if config.additions.paired_frames {
+            Averaging::Paired
+        } else {
+            Averaging::Exact
+        }
     } else {
         Averaging::Reference
     }
@@ -1042,6 +1046,23 @@ mod tests {
         assert!(reference.iter().any(|&f| f != 0.0));
         assert_ne!(run(true, Additions::ALL), reference);
         assert_eq!(run(true, off), reference);
+    }
+
+    #[test]
+    fn the_mounts_grid_pairs_long_frames_unless_paired_frames_is_off() {
+        let mount = |additions| GuiderConfig::<f64> {
+            prediction_at_gear_time: true,
+            additions,
+            ..GuiderConfig::default()
+        };
+        assert_eq!(averaging(&mount(Additions::ALL)), Averaging::Paired);
+        let mut unpaired = Additions::ALL;
+        unpaired.set("paired_frames", false).unwrap();
+        assert_eq!(averaging(&mount(unpaired)), Averaging::Exact);
+        assert_eq!(
+            averaging(&GuiderConfig::<f64>::default()),
+            Averaging::Reference
+        );
     }
 
     #[test]
