@@ -645,6 +645,15 @@ fn an_unstable_guider_is_held_or_left_to_itself() {
         guider: unstable,
         ..Setup::default()
     };
+    // The same guider at other exposures and min moves.
+    let at = |exposure_s, min_move| Setup {
+        guider: GuiderSettings {
+            exposure_s,
+            min_move,
+            ..unstable
+        },
+        ..Setup::default()
+    };
     let mut failures = Vec::new();
     for r in st4_sim::table_with(&cases, &[1.0], held) {
         println!("2 s {}: {r:?}", r.case);
@@ -652,14 +661,7 @@ fn an_unstable_guider_is_held_or_left_to_itself() {
             failures.push(format!("2 s: {r:?}"));
         }
     }
-    let slow = Setup {
-        guider: GuiderSettings {
-            exposure_s: 8.0,
-            min_move: 0.5,
-            ..unstable
-        },
-        ..Setup::default()
-    };
+    let slow = at(8.0, 0.5);
     // The swing is recognised and lowers the weight for some 30 frames of
     // swing at least (1 % a frame); it stops falling once the loop is
     // stable, which the ratios below measure.
@@ -672,28 +674,14 @@ fn an_unstable_guider_is_held_or_left_to_itself() {
             failures.push(format!("8 s: {r:?}"));
         }
     }
-    let paired = Setup {
-        guider: GuiderSettings {
-            exposure_s: 4.0,
-            min_move: 0.1,
-            ..unstable
-        },
-        ..Setup::default()
-    };
+    let paired = at(4.0, 0.1);
     for r in st4_sim::table_with(&cases, &[1.0], paired) {
         println!("4 s {}: {r:?} {:.3}", r.case, r.fw_mkgp / r.guider_only);
         if r.fw_mkgp > r.guider_only {
             failures.push(format!("4 s: {r:?}"));
         }
     }
-    let queued = Setup {
-        guider: GuiderSettings {
-            exposure_s: 0.5,
-            min_move: 0.1,
-            ..unstable
-        },
-        ..Setup::default()
-    };
+    let queued = at(0.5, 0.1);
     for r in st4_sim::table_with(&cases, &[1.0], queued) {
         println!("0.5 s {}: {r:?}", r.case);
         if r.fw_mkgp != r.guider_only || r.fw_ppec != r.guider_only {
