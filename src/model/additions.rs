@@ -189,7 +189,7 @@ additions! {
     /// consecutive frames are anti-correlated, a measured frame more than
     /// half a cell and at most a cell after the one before counts as the
     /// mean of the two at the middle of their times
-    /// (`model::gp::pairs`), so that the swing of a loop that
+    /// (`model::gp::grid::pairs`), so that the swing of a loop that
     /// overcorrects (a period of two frames) is not passed on by the
     /// cells at an alias as gear error. Off: each frame as it is.
     paired_frames: Firmware,

@@ -24,16 +24,20 @@
 //! the reference's traces are kept to the digit; the mount's frames drift
 //! against them, so the mount's guider averages [`Averaging::Exact`]ly:
 //! each cell holds the mean over it of the straight lines between
-//! consecutive samples, centred on the cell whatever the frames' times.
+//! consecutive samples, centred on the cell whatever the frames' times,
+//! and over pairs of long frames while the loop swings from frame to
+//! frame ([`Averaging::Paired`]).
 //!
 //! Time bookkeeping is `f64`: O(1) work per frame, and it keeps sub-ms
 //! precision over a night also where the model runs in `f32`.
 
 use core::mem::MaybeUninit;
 
-use crate::model::gp::pairs::Pairs;
 use crate::model::in_place::{build, fill, init_fields};
 use crate::model::numeric::scalar::Scalar;
+
+mod pairs;
+use pairs::Pairs;
 
 /// Number of cells: 2048 x 5 s = 2.8 h of history.
 pub const GRID_CELLS: usize = 2048;
@@ -54,7 +58,7 @@ pub enum Averaging {
     /// cell's average stands for its centre (the mount's guider).
     Exact,
     /// [`Exact`](Self::Exact) over pairs of long frames while the loop
-    /// swings from frame to frame (`crate::model::gp::pairs`).
+    /// swings from frame to frame (`pairs`).
     Paired,
 }
 

@@ -8,7 +8,6 @@ pub mod grid;
 pub mod infer;
 pub mod kernel;
 mod lag_table;
-mod pairs;
 mod subset;
 mod trend;
 

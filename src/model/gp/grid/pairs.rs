@@ -11,7 +11,7 @@
 //! steps between consecutive frames are anti-correlated: while a swing or
 //! the seeing, not the gear's motion, moves them from frame to frame.
 
-use crate::model::gp::grid::{CELL_S, UNMEASURED_VARIANCE};
+use super::{CELL_S, UNMEASURED_VARIANCE};
 
 /// Frames over which the steps' correlation is averaged: a few minutes of
 /// long frames, short beside a worm period.
